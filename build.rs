@@ -1,0 +1,77 @@
+//! Compiles shaders/*.wgsl to SPIR-V with naga at build time, so a broken
+//! shader fails `cargo build` with the shader's file, line and column.
+
+use std::path::Path;
+
+use naga::back::spv;
+use naga::proc::{BoundsCheckPolicies, BoundsCheckPolicy};
+use naga::valid::{Capabilities, ValidationFlags, Validator};
+
+const SHADERS: &[&str] = &["trace"];
+
+fn main() {
+    let out_dir = std::env::var("OUT_DIR").expect("cargo sets OUT_DIR");
+    for name in SHADERS {
+        let path = format!("shaders/{name}.wgsl");
+        println!("cargo:rerun-if-changed={path}");
+        let source =
+            std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("cannot read {path}: {e}"));
+        let words = compile(&source, &path).unwrap_or_else(|message| {
+            // Cargo shows a build script's stderr on failure; exit rather than
+            // panic so the message is not buried under a backtrace.
+            eprintln!("{message}");
+            std::process::exit(1);
+        });
+        let spv_path = Path::new(&out_dir).join(format!("{name}.spv"));
+        std::fs::write(&spv_path, bytemuck_words(&words))
+            .unwrap_or_else(|e| panic!("cannot write {}: {e}", spv_path.display()));
+    }
+}
+
+fn compile(source: &str, path: &str) -> Result<Vec<u32>, String> {
+    let module = naga::front::wgsl::parse_str(source).map_err(|e| {
+        format!(
+            "shader parse error\n{}",
+            e.emit_to_string_with_path(source, path)
+        )
+    })?;
+    let info = Validator::new(ValidationFlags::all(), Capabilities::empty())
+        .validate(&module)
+        .map_err(|e| {
+            format!(
+                "shader validation error\n{}",
+                e.emit_to_string_with_path(source, path)
+            )
+        })?;
+    let options = spv::Options {
+        // SPIR-V 1.0 runs on every Vulkan 1.0 device, MoltenVK included.
+        lang_version: (1, 0),
+        flags: spv::WriterFlags::empty(),
+        // Every index the shader uses comes from our own BVH builder; Restrict
+        // (clamp) still keeps a builder bug from reading out of bounds, at the
+        // cost of a min() per access.
+        bounds_check_policies: BoundsCheckPolicies {
+            index: BoundsCheckPolicy::Restrict,
+            buffer: BoundsCheckPolicy::Restrict,
+            image_load: BoundsCheckPolicy::Restrict,
+            binding_array: BoundsCheckPolicy::Restrict,
+        },
+        // A loop the compiler may assume finite must be finite; naga's counter
+        // makes that hold even for a traversal bug, which the host's fence
+        // timeout then reports instead of a hung device.
+        force_loop_bounding: true,
+        // Without a binding map naga writes each @group/@binding as declared.
+        fake_missing_bindings: true,
+        ..spv::Options::default()
+    };
+    let pipeline = spv::PipelineOptions {
+        shader_stage: naga::ShaderStage::Compute,
+        entry_point: "render_tile".to_string(),
+    };
+    spv::write_vec(&module, &info, &options, Some(&pipeline))
+        .map_err(|e| format!("{path}: SPIR-V generation failed: {e}"))
+}
+
+fn bytemuck_words(words: &[u32]) -> Vec<u8> {
+    words.iter().flat_map(|w| w.to_le_bytes()).collect()
+}

@@ -1,0 +1,415 @@
+// glint's ray tracing kernel: one invocation per pixel of a tile.
+//
+// Bindings (group 0); the structs mirror src/layout.rs and tests/layout.rs
+// checks every offset and size against it:
+//   0  uniform            Frame          per-image constants
+//   1  uniform            Tile           the tile this dispatch renders
+//   2  storage, read      array<Sphere>
+//   3  storage, read      array<Triangle>          positions only
+//   4  storage, read      array<VertexShading>     3 per triangle
+//   5  storage, read      array<Light>
+//   6  storage, read      array<BvhNode>           depth-first, see src/bvh.rs
+//   7  storage, read      array<u32>               primitive refs (bit 31: sphere)
+//   8  storage, rw        array<vec4<f32>>         tile output, linear RGB, row-major
+//
+// The CPU reference (src/cpu/trace.rs) implements the same functions under
+// the same names; keep them in step.
+
+struct Frame {
+    background: vec4<f32>,
+    ambient: vec4<f32>,
+    half_extent: vec2<f32>,
+    size: vec2<u32>,
+    node_count: u32,
+    light_count: u32,
+    _pad: vec2<u32>,
+}
+
+struct Tile {
+    origin: vec2<u32>,
+    size: vec2<u32>,
+}
+
+struct Sphere {
+    center: vec3<f32>,
+    radius: f32,
+    kd: vec3<f32>,
+    shininess: f32,
+    ks: vec3<f32>,
+    _pad: f32,
+}
+
+struct Triangle {
+    v: array<vec4<f32>, 3>,
+}
+
+struct VertexShading {
+    normal: vec3<f32>,
+    shininess: f32,
+    kd: vec3<f32>,
+    _pad0: f32,
+    ks: vec3<f32>,
+    _pad1: f32,
+}
+
+struct Light {
+    position: vec4<f32>,
+    color: vec4<f32>,
+}
+
+struct BvhNode {
+    min: vec3<f32>,
+    right_or_first: u32,
+    max: vec3<f32>,
+    count: u32,
+}
+
+@group(0) @binding(0) var<uniform> frame: Frame;
+@group(0) @binding(1) var<uniform> tile: Tile;
+@group(0) @binding(2) var<storage, read> spheres: array<Sphere>;
+@group(0) @binding(3) var<storage, read> triangles: array<Triangle>;
+@group(0) @binding(4) var<storage, read> shading: array<VertexShading>;
+@group(0) @binding(5) var<storage, read> lights: array<Light>;
+@group(0) @binding(6) var<storage, read> nodes: array<BvhNode>;
+@group(0) @binding(7) var<storage, read> prim_refs: array<u32>;
+@group(0) @binding(8) var<storage, read_write> output: array<vec4<f32>>;
+
+const SPHERE_BIT: u32 = 0x80000000u;
+const BVH_MAX_DEPTH: u32 = 64u;
+const WORKGROUP_SIZE: u32 = 8u;
+const NO_HIT: u32 = 0xffffffffu;
+// Largest finite f32: "no limit" for t without producing inf * 0 anywhere.
+const T_INF: f32 = 3.40282347e38;
+// Robust BVH traversal (Ize 2013, "Robust BVH Ray Traversal", JCGT 2(2)):
+// scaling t_far by 1 + 2*gamma(3), gamma(n) = n*eps / (1 - n*eps), eps = 2^-24,
+// makes the slab test conservative under f32 rounding.
+const BOX_T_SCALE: f32 = 1.0000003576;
+// Direction components smaller than this are replaced by it (keeping their
+// sign) before taking reciprocals, so the slab test never forms 0 * inf = NaN
+// for axis-aligned rays; the resulting boxes can only be too large, never miss.
+const MIN_DIR: f32 = 1e-30;
+// Wächter and Binder, "A Fast and Robust Method for Avoiding Self-Intersection",
+// Ray Tracing Gems ch. 6: offset in integer ulps, except near the origin.
+const OFFSET_ORIGIN: f32 = 0.03125;
+const OFFSET_FLOAT_SCALE: f32 = 1.52587890625e-05;
+const OFFSET_INT_SCALE: f32 = 256.0;
+
+// A ray with what every intersection test needs precomputed once.
+struct Ray {
+    origin: vec3<f32>,
+    dir: vec3<f32>,
+    inv_dir: vec3<f32>,
+    // Watertight triangle test: axis permutation (kx, ky, kz) and shear.
+    k: vec3<u32>,
+    shear: vec3<f32>,
+}
+
+struct Hit {
+    t: f32,
+    // Primitive reference as stored in prim_refs, or NO_HIT.
+    prim: u32,
+    // Barycentric weights of vertices 1 and 2 (triangles only).
+    b1: f32,
+    b2: f32,
+}
+
+fn sign_nonzero(x: f32) -> f32 {
+    return select(-1.0, 1.0, x >= 0.0);
+}
+
+fn make_ray(origin: vec3<f32>, dir: vec3<f32>) -> Ray {
+    let safe = select(dir, vec3(sign_nonzero(dir.x), sign_nonzero(dir.y), sign_nonzero(dir.z)) * MIN_DIR,
+                      abs(dir) < vec3(MIN_DIR));
+    // Woop, Benthin and Wald, "Watertight Ray/Triangle Intersection", JCGT 2(1)
+    // 2013: z is the dominant axis; swapping x and y when dir[kz] < 0 keeps
+    // the winding, so the edge functions keep their signs.
+    let a = abs(dir);
+    var kz = 2u;
+    if (a.x > a.y && a.x > a.z) {
+        kz = 0u;
+    } else if (a.y > a.z) {
+        kz = 1u;
+    }
+    var kx = (kz + 1u) % 3u;
+    var ky = (kx + 1u) % 3u;
+    if (dir[kz] < 0.0) {
+        let tmp = kx;
+        kx = ky;
+        ky = tmp;
+    }
+    let sz = 1.0 / dir[kz];
+    return Ray(origin, dir, 1.0 / safe, vec3(kx, ky, kz), vec3(dir[kx] * sz, dir[ky] * sz, sz));
+}
+
+// Primary ray through the centre of pixel (x, y); row 0 is the top.
+fn pixel_ray(x: u32, y: u32) -> Ray {
+    let size = vec2<f32>(frame.size);
+    let ndc_x = (2.0 * (f32(x) + 0.5) / size.x - 1.0) * frame.half_extent.x;
+    let ndc_y = (1.0 - 2.0 * (f32(y) + 0.5) / size.y) * frame.half_extent.y;
+    return make_ray(vec3(0.0), normalize(vec3(ndc_x, ndc_y, -1.0)));
+}
+
+// Entry distance of the ray into the box within [0, t_max], or T_INF if it misses.
+fn hit_aabb(ray: Ray, bmin: vec3<f32>, bmax: vec3<f32>, t_max: f32) -> f32 {
+    let t0 = (bmin - ray.origin) * ray.inv_dir;
+    let t1 = (bmax - ray.origin) * ray.inv_dir;
+    let tn = min(t0, t1);
+    let tf = max(t0, t1);
+    let t_near = max(max(tn.x, tn.y), max(tn.z, 0.0));
+    let t_far = min(min(tf.x, tf.y), min(tf.z, t_max)) * BOX_T_SCALE;
+    return select(T_INF, t_near, t_near <= t_far);
+}
+
+// Nearest t in (0, t_max) where the ray meets the sphere, or T_INF.
+// Ray Tracing Gems ch. 7 (Haines et al.): the discriminant from the
+// perpendicular distance to the centre and the stable root pair avoid
+// catastrophic cancellation for small or distant spheres.
+fn hit_sphere(ray: Ray, s: Sphere, t_max: f32) -> f32 {
+    let f = ray.origin - s.center;
+    let a = dot(ray.dir, ray.dir);
+    let b = -dot(f, ray.dir);
+    let c = dot(f, f) - s.radius * s.radius;
+    let l = f + (b / a) * ray.dir;
+    let disc = s.radius * s.radius - dot(l, l);
+    if (disc < 0.0) {
+        return T_INF;
+    }
+    let q = b + sign_nonzero(b) * sqrt(a * disc);
+    let t0 = c / q;
+    let t1 = q / a;
+    let t_lo = min(t0, t1);
+    let t_hi = max(t0, t1);
+    if (t_lo > 0.0 && t_lo < t_max) {
+        return t_lo;
+    }
+    if (t_hi > 0.0 && t_hi < t_max) {
+        return t_hi;
+    }
+    return T_INF;
+}
+
+// Watertight ray/triangle test (Woop, Benthin, Wald 2013). Edges count as
+// inside for both neighbours, so a ray through a shared edge or vertex hits
+// at least one of them; there is no epsilon on the determinant.
+// Returns (t, b1, b2) with t = T_INF for a miss.
+fn hit_triangle(ray: Ray, tri: Triangle, t_max: f32) -> vec3<f32> {
+    let a = tri.v[0].xyz - ray.origin;
+    let b = tri.v[1].xyz - ray.origin;
+    let c = tri.v[2].xyz - ray.origin;
+    let k = ray.k;
+    let s = ray.shear;
+    let ax = a[k.x] - s.x * a[k.z];
+    let ay = a[k.y] - s.y * a[k.z];
+    let bx = b[k.x] - s.x * b[k.z];
+    let by = b[k.y] - s.y * b[k.z];
+    let cx = c[k.x] - s.x * c[k.z];
+    let cy = c[k.y] - s.y * c[k.z];
+    let u = cx * by - cy * bx;
+    let v = ax * cy - ay * cx;
+    let w = bx * ay - by * ax;
+    if ((u < 0.0 || v < 0.0 || w < 0.0) && (u > 0.0 || v > 0.0 || w > 0.0)) {
+        return vec3(T_INF, 0.0, 0.0);
+    }
+    let det = u + v + w;
+    if (det == 0.0) {
+        return vec3(T_INF, 0.0, 0.0);
+    }
+    let az = s.z * a[k.z];
+    let bz = s.z * b[k.z];
+    let cz = s.z * c[k.z];
+    let t_scaled = u * az + v * bz + w * cz;
+    // t = t_scaled / det must lie in (0, t_max); compare without dividing.
+    let positive = (t_scaled > 0.0) && (t_scaled < t_max * det);
+    let negative = (t_scaled < 0.0) && (t_scaled > t_max * det);
+    let inside = select(negative, positive, det > 0.0);
+    if (!inside) {
+        return vec3(T_INF, 0.0, 0.0);
+    }
+    let inv_det = 1.0 / det;
+    return vec3(t_scaled * inv_det, v * inv_det, w * inv_det);
+}
+
+// Tests the leaf's primitives; `any_hit` returns at the first hit in range.
+fn hit_leaf(ray: Ray, node: BvhNode, best: ptr<function, Hit>, any_hit: bool) -> bool {
+    for (var i = 0u; i < node.count; i++) {
+        let prim = prim_refs[node.right_or_first + i];
+        let index = prim & ~SPHERE_BIT;
+        if ((prim & SPHERE_BIT) != 0u) {
+            let t = hit_sphere(ray, spheres[index], (*best).t);
+            if (t < (*best).t) {
+                *best = Hit(t, prim, 0.0, 0.0);
+                if (any_hit) {
+                    return true;
+                }
+            }
+        } else {
+            let h = hit_triangle(ray, triangles[index], (*best).t);
+            if (h.x < (*best).t) {
+                *best = Hit(h.x, prim, h.y, h.z);
+                if (any_hit) {
+                    return true;
+                }
+            }
+        }
+    }
+    return false;
+}
+
+// Walks the BVH nearest child first. Closest hit in (0, t_max), or with
+// `any_hit` the first hit found (shadow rays stop at the first blocker).
+fn traverse(ray: Ray, t_max: f32, any_hit: bool) -> Hit {
+    var best = Hit(t_max, NO_HIT, 0.0, 0.0);
+    if (frame.node_count == 0u || hit_aabb(ray, nodes[0].min, nodes[0].max, t_max) == T_INF) {
+        return best;
+    }
+    var stack: array<u32, BVH_MAX_DEPTH>;
+    var sp = 0u;
+    var index = 0u;
+    loop {
+        let node = nodes[index];
+        if (node.count > 0u) {
+            if (hit_leaf(ray, node, &best, any_hit)) {
+                return best;
+            }
+            if (sp == 0u) {
+                break;
+            }
+            sp -= 1u;
+            index = stack[sp];
+            continue;
+        }
+        let left = index + 1u;
+        let right = node.right_or_first;
+        let t_left = hit_aabb(ray, nodes[left].min, nodes[left].max, best.t);
+        let t_right = hit_aabb(ray, nodes[right].min, nodes[right].max, best.t);
+        if (t_left == T_INF && t_right == T_INF) {
+            if (sp == 0u) {
+                break;
+            }
+            sp -= 1u;
+            index = stack[sp];
+        } else if (t_right == T_INF) {
+            index = left;
+        } else if (t_left == T_INF) {
+            index = right;
+        } else {
+            // Both hit: visit the nearer now, the farther later. The builder
+            // caps depth at BVH_MAX_DEPTH, so the stack cannot overflow.
+            index = select(right, left, t_left <= t_right);
+            stack[sp] = select(left, right, t_left <= t_right);
+            sp += 1u;
+        }
+    }
+    return best;
+}
+
+fn trace_closest(ray: Ray) -> Hit {
+    return traverse(ray, T_INF, false);
+}
+
+// Whether anything lies strictly between the ray origin (t = 0) and the
+// light (t = 1; the direction is unnormalized and ends at the light).
+fn occluded(ray: Ray) -> bool {
+    return traverse(ray, 1.0, true).prim != NO_HIT;
+}
+
+fn offset_ray(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    let of_i = vec3<i32>(OFFSET_INT_SCALE * n);
+    let p_i = bitcast<vec3<f32>>(bitcast<vec3<i32>>(p) + select(of_i, -of_i, p < vec3(0.0)));
+    return select(p_i, p + OFFSET_FLOAT_SCALE * n, abs(p) < vec3(OFFSET_ORIGIN));
+}
+
+fn safe_normalize(v: vec3<f32>, fallback: vec3<f32>) -> vec3<f32> {
+    let len2 = dot(v, v);
+    if (len2 > 0.0) {
+        return v * inverseSqrt(len2);
+    }
+    return fallback;
+}
+
+// C's pow for the specular base x >= 0: pow(x, 0) = 1 (also for x = 0), and
+// 0^y = 0 for y > 0; WGSL leaves pow(0, y) undefined.
+fn pow_c(x: f32, y: f32) -> f32 {
+    if (y == 0.0) {
+        return 1.0;
+    }
+    if (x <= 0.0) {
+        return 0.0;
+    }
+    return pow(x, y);
+}
+
+struct SurfacePoint {
+    p: vec3<f32>,
+    // Shading normal (interpolated for triangles).
+    n: vec3<f32>,
+    // Geometric normal, for offsetting secondary rays.
+    ng: vec3<f32>,
+    kd: vec3<f32>,
+    ks: vec3<f32>,
+    shininess: f32,
+}
+
+fn surface_point(ray: Ray, hit: Hit) -> SurfacePoint {
+    let index = hit.prim & ~SPHERE_BIT;
+    if ((hit.prim & SPHERE_BIT) != 0u) {
+        let s = spheres[index];
+        let p = ray.origin + hit.t * ray.dir;
+        let n = (p - s.center) * (1.0 / s.radius);
+        return SurfacePoint(p, n, n, s.kd, s.ks, s.shininess);
+    }
+    let tri = triangles[index];
+    let b0 = 1.0 - hit.b1 - hit.b2;
+    let w = vec3(b0, hit.b1, hit.b2);
+    // The point from barycentrics, not origin + t * dir: its error does not
+    // grow with the distance travelled (Ray Tracing Gems ch. 6).
+    let p = w.x * tri.v[0].xyz + w.y * tri.v[1].xyz + w.z * tri.v[2].xyz;
+    let ng = safe_normalize(cross(tri.v[1].xyz - tri.v[0].xyz, tri.v[2].xyz - tri.v[0].xyz), vec3(0.0, 0.0, 1.0));
+    let s0 = shading[3u * index];
+    let s1 = shading[3u * index + 1u];
+    let s2 = shading[3u * index + 2u];
+    let n = safe_normalize(w.x * s0.normal + w.y * s1.normal + w.z * s2.normal, ng);
+    let kd = w.x * s0.kd + w.y * s1.kd + w.z * s2.kd;
+    let ks = w.x * s0.ks + w.y * s1.ks + w.z * s2.ks;
+    let shininess = w.x * s0.shininess + w.y * s1.shininess + w.z * s2.shininess;
+    return SurfacePoint(p, n, ng, kd, ks, shininess);
+}
+
+// Phong at a surface point: ambient once, plus each unshadowed light's
+// light * (kd * max(L.N, 0) + ks * max(R.V, 0)^shininess), clamped to [0, 1].
+fn shade_phong(sp: SurfacePoint, view: vec3<f32>) -> vec3<f32> {
+    var color = frame.ambient.xyz;
+    for (var i = 0u; i < frame.light_count; i++) {
+        let light = lights[i];
+        let to_light = light.position.xyz - sp.p;
+        // Leave from the side of the surface that faces the light.
+        let side = select(-sp.ng, sp.ng, dot(sp.ng, to_light) >= 0.0);
+        let origin = offset_ray(sp.p, side);
+        if (occluded(make_ray(origin, light.position.xyz - origin))) {
+            continue;
+        }
+        let l = safe_normalize(to_light, sp.n);
+        let ln = dot(l, sp.n);
+        let r = 2.0 * ln * sp.n - l;
+        let rv = max(dot(r, view), 0.0);
+        color += light.color.xyz * (sp.kd * max(ln, 0.0) + sp.ks * pow_c(rv, sp.shininess));
+    }
+    return clamp(color, vec3(0.0), vec3(1.0));
+}
+
+fn trace_primary(ray: Ray) -> vec3<f32> {
+    let hit = trace_closest(ray);
+    if (hit.prim == NO_HIT) {
+        return clamp(frame.background.xyz, vec3(0.0), vec3(1.0));
+    }
+    return shade_phong(surface_point(ray, hit), -ray.dir);
+}
+
+@compute @workgroup_size(WORKGROUP_SIZE, WORKGROUP_SIZE)
+fn render_tile(@builtin(global_invocation_id) id: vec3<u32>) {
+    if (id.x >= tile.size.x || id.y >= tile.size.y) {
+        return;
+    }
+    let color = trace_primary(pixel_ray(tile.origin.x + id.x, tile.origin.y + id.y));
+    output[id.y * tile.size.x + id.x] = vec4(color, 1.0);
+}

@@ -1,0 +1,199 @@
+//! One bounding volume hierarchy over spheres and triangles together, built
+//! once on the host with binned SAH and flattened into the layout that both
+//! the shader and the CPU reference traverse (`layout::GpuBvhNode`).
+//!
+//! Nodes are stored depth-first: an interior node's left child is the next
+//! node, its right child is at `right_or_first`. A leaf's primitives are
+//! `prim_refs[first .. first + count]`, each a `PrimRef` (sphere bit + index).
+//! Boxes are computed in f64 and rounded outward to f32 (with a few ulps of
+//! slack for spheres, whose f32 centre and radius round independently), so
+//! they contain both the f64 geometry and its f32 rounding.
+
+use glam::DVec3;
+
+use crate::layout::{GpuBvhNode, BVH_MAX_DEPTH, SPHERE_BIT};
+use crate::scene::{Bounds, Scene};
+
+/// Most primitives a leaf holds when the SAH would rather split further.
+const MAX_LEAF_SIZE: usize = 4;
+const BIN_COUNT: usize = 16;
+/// Relative SAH cost of a primitive test against a node visit.
+const INTERSECT_COST: f64 = 1.0;
+const TRAVERSAL_COST: f64 = 1.0;
+
+#[derive(Clone, Debug, Default)]
+pub struct Bvh {
+    pub nodes: Vec<GpuBvhNode>,
+    /// Primitive references in leaf order; bit 31 set for spheres.
+    pub prim_refs: Vec<u32>,
+    /// Deepest leaf (root = 0); traversal stacks need at most this many slots.
+    pub depth: u32,
+}
+
+struct Prim {
+    bounds: Bounds,
+    centroid: DVec3,
+    reference: u32,
+}
+
+impl Bvh {
+    pub fn build(scene: &Scene) -> Bvh {
+        let spheres = scene.spheres.iter().enumerate().map(|(i, s)| Prim {
+            bounds: widen(s.bounds()),
+            centroid: s.center,
+            reference: i as u32 | SPHERE_BIT,
+        });
+        let triangles = scene.triangles.iter().enumerate().map(|(i, t)| {
+            let bounds = t.bounds();
+            Prim {
+                bounds,
+                centroid: bounds.centroid(),
+                reference: i as u32,
+            }
+        });
+        let mut prims: Vec<Prim> = spheres.chain(triangles).collect();
+        let mut bvh = Bvh::default();
+        if !prims.is_empty() {
+            bvh.nodes.reserve(2 * prims.len());
+            bvh.build_node(&mut prims, 0, 0);
+        }
+        bvh.prim_refs = prims.iter().map(|p| p.reference).collect();
+        bvh
+    }
+
+    /// Builds the subtree over `prims` (which start at `first` in the final
+    /// order) and returns its node index.
+    fn build_node(&mut self, prims: &mut [Prim], first: usize, depth: u32) -> usize {
+        self.depth = self.depth.max(depth);
+        let bounds = prims.iter().fold(Bounds::EMPTY, |b, p| b.union(p.bounds));
+        let index = self.nodes.len();
+        self.nodes
+            .push(node(bounds, first as u32, prims.len() as u32));
+        if prims.len() <= 1 || depth + 1 >= BVH_MAX_DEPTH {
+            return index;
+        }
+        let Some(mid) = split(prims, bounds) else {
+            return index;
+        };
+        let (left, right) = prims.split_at_mut(mid);
+        self.build_node(left, first, depth + 1);
+        let right_index = self.build_node(right, first + mid, depth + 1);
+        self.nodes[index].right_or_first = right_index as u32;
+        self.nodes[index].count = 0;
+        index
+    }
+}
+
+/// Chooses a binned-SAH split and partitions `prims`; `None` makes a leaf.
+fn split(prims: &mut [Prim], bounds: Bounds) -> Option<usize> {
+    let centroids = prims.iter().fold(Bounds::EMPTY, |b, p| b.grow(p.centroid));
+    let extent = centroids.max - centroids.min;
+    let axis = extent.max_position();
+    let (lo, width) = (centroids.min[axis], extent[axis]);
+    let bin_of = |c: DVec3| -> usize {
+        if width > 0.0 {
+            (((c[axis] - lo) / width * BIN_COUNT as f64) as usize).min(BIN_COUNT - 1)
+        } else {
+            0
+        }
+    };
+    let mut best: Option<(f64, usize)> = None;
+    if width > 0.0 {
+        let mut bins = [(Bounds::EMPTY, 0usize); BIN_COUNT];
+        for p in prims.iter() {
+            let b = &mut bins[bin_of(p.centroid)];
+            b.0 = b.0.union(p.bounds);
+            b.1 += 1;
+        }
+        // Sweep from the right once, then from the left, pricing each split plane.
+        let mut right_area = [0.0; BIN_COUNT];
+        let mut acc = (Bounds::EMPTY, 0usize);
+        for i in (1..BIN_COUNT).rev() {
+            acc = (acc.0.union(bins[i].0), acc.1 + bins[i].1);
+            right_area[i] = acc.0.surface_area() * acc.1 as f64;
+        }
+        let mut acc = (Bounds::EMPTY, 0usize);
+        for i in 0..BIN_COUNT - 1 {
+            acc = (acc.0.union(bins[i].0), acc.1 + bins[i].1);
+            let cost = acc.0.surface_area() * acc.1 as f64 + right_area[i + 1];
+            if acc.1 > 0 && acc.1 < prims.len() && best.is_none_or(|(c, _)| cost < c) {
+                best = Some((cost, i));
+            }
+        }
+    }
+    let leaf_cost = INTERSECT_COST * prims.len() as f64;
+    let area = bounds.surface_area();
+    match best {
+        Some((cost, plane))
+            if prims.len() > MAX_LEAF_SIZE
+                || area <= 0.0
+                || TRAVERSAL_COST + INTERSECT_COST * cost / area < leaf_cost =>
+        {
+            Some(partition(prims, |p| bin_of(p.centroid) <= plane))
+        }
+        // All centroids coincide (or no plane separates them): split by count so
+        // that oversized leaves cannot happen, unless the leaf is already small.
+        _ if prims.len() > MAX_LEAF_SIZE => Some(prims.len() / 2),
+        _ => None,
+    }
+}
+
+fn partition(prims: &mut [Prim], left: impl Fn(&Prim) -> bool) -> usize {
+    let mut mid = 0;
+    for i in 0..prims.len() {
+        if left(&prims[i]) {
+            prims.swap(i, mid);
+            mid += 1;
+        }
+    }
+    mid
+}
+
+fn node(b: Bounds, first: u32, count: u32) -> GpuBvhNode {
+    GpuBvhNode {
+        min: b.min.to_array().map(round_down),
+        right_or_first: first,
+        max: b.max.to_array().map(round_up),
+        count,
+    }
+}
+
+/// Slack for spheres: their f32 centre and radius each round on their own, so
+/// the f32 sphere can poke out of the f64 one by a few ulps of its extent.
+fn widen(b: Bounds) -> Bounds {
+    let slack = (b.min.abs().max(b.max.abs())) * (4.0 * f32::EPSILON as f64);
+    Bounds {
+        min: b.min - slack,
+        max: b.max + slack,
+    }
+}
+
+fn round_down(x: f64) -> f32 {
+    let f = x as f32;
+    if f as f64 > x {
+        f.next_down()
+    } else {
+        f
+    }
+}
+
+fn round_up(x: f64) -> f32 {
+    let f = x as f32;
+    if (f as f64) < x {
+        f.next_up()
+    } else {
+        f
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn outward_rounding_contains_the_f64_value() {
+        for x in [0.1, -0.1, 1e-30, -3.3e7, 123.456] {
+            assert!((round_down(x) as f64) <= x && (round_up(x) as f64) >= x);
+        }
+    }
+}

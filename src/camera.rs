@@ -1,0 +1,35 @@
+//! The fixed camera of the classic assignment: at the origin, looking down -z,
+//! +y up, 60 degree vertical field of view, image plane at z = -1, one ray
+//! through each pixel centre, row 0 at the top.
+
+/// Vertical field of view, in degrees.
+pub const FOV_Y_DEGREES: f64 = 60.0;
+pub const DEFAULT_WIDTH: u32 = 640;
+pub const DEFAULT_HEIGHT: u32 = 480;
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Camera {
+    /// Image width in pixels.
+    pub width: u32,
+    /// Image height in pixels.
+    pub height: u32,
+    /// Half-extent of the image plane at z = -1: (tan(fov/2) * aspect, tan(fov/2)).
+    /// Computed in f64; the shader and the CPU f32 path both use its f32 rounding.
+    pub half_extent: [f64; 2],
+}
+
+impl Camera {
+    pub fn new(width: u32, height: u32) -> Camera {
+        let half_y = (FOV_Y_DEGREES.to_radians() * 0.5).tan();
+        let aspect = f64::from(width) / f64::from(height);
+        Camera {
+            width,
+            height,
+            half_extent: [half_y * aspect, half_y],
+        }
+    }
+
+    pub fn half_extent_f32(&self) -> [f32; 2] {
+        [self.half_extent[0] as f32, self.half_extent[1] as f32]
+    }
+}

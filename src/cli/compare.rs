@@ -1,0 +1,38 @@
+use std::path::PathBuf;
+use std::process::ExitCode;
+
+use clap::Args;
+use glint::compare::compare_images;
+use glint::framebuffer::{read_image, write_image};
+
+#[derive(Args, Debug)]
+pub struct CompareArgs {
+    /// Reference image.
+    a: PathBuf,
+    /// Image to check against it.
+    b: PathBuf,
+    /// Write a difference image here (.png recommended).
+    #[arg(long)]
+    diff: Option<PathBuf>,
+    /// Per-channel difference (0-255 levels) above which a pixel counts as differing.
+    #[arg(long, default_value_t = 1.0)]
+    threshold: f64,
+    /// Exit with status 1 when any pixel exceeds the threshold.
+    #[arg(long)]
+    fail: bool,
+}
+
+pub fn run(args: CompareArgs) -> anyhow::Result<ExitCode> {
+    let a = read_image(&args.a)?;
+    let b = read_image(&args.b)?;
+    let cmp = compare_images(&a, &b, args.threshold)?;
+    println!("{cmp}");
+    if let Some(path) = &args.diff {
+        write_image(&cmp.diff_image(), path, 95)?;
+        println!("wrote {}", path.display());
+    }
+    if args.fail && cmp.over_threshold > 0 {
+        return Ok(ExitCode::from(1));
+    }
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,153 @@
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+use std::time::{Duration, Instant};
+
+use anyhow::Context as _;
+use clap::Args;
+use glint::cpu::Precision;
+use glint::framebuffer::{write_image, DEFAULT_JPEG_QUALITY};
+use glint::gpu::DeviceSelector;
+use glint::render::{render, Backend, RenderOptions};
+use indicatif::{ProgressBar, ProgressStyle};
+
+use super::{print_warnings, BackendArg, PrecisionArg};
+
+#[derive(Args, Debug)]
+pub struct RenderArgs {
+    /// Scene file in the classic format.
+    scene: PathBuf,
+    /// Output image (.jpg, .jpeg or .png); default: <scene stem>.jpg here.
+    out: Option<PathBuf>,
+    /// Output image, as an option.
+    #[arg(short, long, conflicts_with = "out")]
+    output: Option<PathBuf>,
+    #[arg(long, default_value_t = glint::camera::DEFAULT_WIDTH, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    width: u32,
+    #[arg(long, default_value_t = glint::camera::DEFAULT_HEIGHT, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    height: u32,
+    /// auto: the best Vulkan device, else the CPU reference (with a note).
+    #[arg(long, value_enum, default_value = "auto")]
+    backend: BackendArg,
+    /// Vulkan device by index or name (see `glint devices`).
+    #[arg(long)]
+    device: Option<String>,
+    /// CPU reference arithmetic: f32 follows the shader, f64 is ground truth.
+    #[arg(long, value_enum, default_value = "f32")]
+    precision: PrecisionArg,
+    /// Colour of rays that hit nothing, as R,G,B in [0, 1].
+    #[arg(long, default_value = "1,1,1", value_parser = parse_rgb)]
+    background: [f32; 3],
+    /// JPEG quality (1-100).
+    #[arg(long, default_value_t = DEFAULT_JPEG_QUALITY, value_parser = clap::value_parser!(u8).range(1..=100))]
+    quality: u8,
+    /// Enable the Vulkan validation layer (when installed) and report its messages.
+    #[arg(long)]
+    validation: bool,
+    /// Tile edge in pixels for the GPU (work per submit).
+    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(8..=4096))]
+    tile: u32,
+    /// Print timings (parse, BVH build, pipeline, upload, dispatch, readback).
+    #[arg(short, long)]
+    verbose: bool,
+}
+
+fn parse_rgb(s: &str) -> Result<[f32; 3], String> {
+    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
+    let values: Result<Vec<f32>, _> = parts.iter().map(|p| p.parse::<f32>()).collect();
+    match values {
+        Ok(v) if v.len() == 3 && v.iter().all(|c| (0.0..=1.0).contains(c)) => {
+            Ok([v[0], v[1], v[2]])
+        }
+        _ => Err(format!(
+            "expected R,G,B with each in [0, 1] (e.g. 0,0,0 for black), found `{s}`"
+        )),
+    }
+}
+
+fn default_output(scene: &Path) -> PathBuf {
+    let stem = scene.file_stem().unwrap_or(scene.as_os_str());
+    PathBuf::from(stem).with_extension("jpg")
+}
+
+pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
+    let parse_start = Instant::now();
+    let scene = glint::scene::read_scene(&args.scene)?;
+    let parse_time = parse_start.elapsed();
+    print_warnings(&scene);
+
+    let (out, defaulted) = match args.out.or(args.output) {
+        Some(p) => (p, false),
+        None => (default_output(&args.scene), true),
+    };
+    let options = RenderOptions {
+        width: args.width,
+        height: args.height,
+        background: args.background,
+        backend: match args.backend {
+            BackendArg::Auto => Backend::Auto,
+            BackendArg::Gpu => Backend::Gpu,
+            BackendArg::Cpu => Backend::Cpu,
+        },
+        device: args.device.as_deref().map(DeviceSelector::parse),
+        precision: match args.precision {
+            PrecisionArg::F32 => Precision::F32,
+            PrecisionArg::F64 => Precision::F64,
+        },
+        validation: args.validation || std::env::var_os("GLINT_VALIDATION").is_some(),
+        gpu: glint::gpu::GpuRenderOptions {
+            tile_size: args.tile,
+            ..Default::default()
+        },
+    };
+
+    let bar = ProgressBar::new(0);
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} rendering [{bar:30}] {pos}/{len} {elapsed}")
+            .expect("valid template")
+            .progress_chars("=> "),
+    );
+    // Short renders finish before the bar would be useful; only show it later.
+    let started = Instant::now();
+    let progress = |done: u64, total: u64| {
+        if started.elapsed() > Duration::from_millis(500) {
+            bar.set_length(total);
+            bar.set_position(done);
+        }
+    };
+    let result = render(&scene, &options, &progress);
+    bar.finish_and_clear();
+    let output = result?;
+    if let Some(note) = &output.note {
+        eprintln!("note: {note}");
+    }
+    if output.validation_messages > 0 {
+        eprintln!(
+            "warning: the Vulkan validation layer reported {} message(s)",
+            output.validation_messages
+        );
+    }
+    let write_start = Instant::now();
+    write_image(&output.framebuffer.to_rgb8(), &out, args.quality)
+        .with_context(|| format!("rendering {}", args.scene.display()))?;
+    let write_time = write_start.elapsed();
+    let mut timings = output.timings;
+    timings.phases.insert(0, ("parse", parse_time));
+    timings.add("write", write_time);
+    println!(
+        "wrote {}{} ({}x{}, {}, {:.1} ms)",
+        out.display(),
+        if defaulted {
+            " (default name: <scene>.jpg)"
+        } else {
+            ""
+        },
+        args.width,
+        args.height,
+        output.renderer,
+        timings.total().as_secs_f64() * 1e3
+    );
+    if args.verbose {
+        println!("timings:\n{timings}");
+    }
+    Ok(ExitCode::SUCCESS)
+}

@@ -1,0 +1,188 @@
+//! The scalar/vector types the CPU reference is generic over: f32 with glam's
+//! `Vec3` (the shader's twin) and f64 with `DVec3` (ground truth).
+
+use std::fmt::Debug;
+use std::ops::{Add, Div, Index, Mul, Neg, Sub};
+
+use glam::{DVec3, Vec3};
+
+pub trait Real:
+    Copy
+    + Send
+    + Sync
+    + Debug
+    + PartialOrd
+    + Add<Output = Self>
+    + Sub<Output = Self>
+    + Mul<Output = Self>
+    + Div<Output = Self>
+    + Neg<Output = Self>
+    + 'static
+{
+    type V3: Copy
+        + Send
+        + Sync
+        + Debug
+        + Add<Output = Self::V3>
+        + Sub<Output = Self::V3>
+        + Mul<Self, Output = Self::V3>
+        + Mul<Self::V3, Output = Self::V3>
+        + Neg<Output = Self::V3>
+        + Index<usize, Output = Self>;
+
+    const ZERO: Self;
+    const ONE: Self;
+    const TWO: Self;
+    const HALF: Self;
+    /// Largest finite value: "no limit" for t, as `T_INF` in the shader.
+    const T_INF: Self;
+    /// 1 + 2 * gamma(3) for this precision (Ize 2013); see `BOX_T_SCALE` in the shader.
+    const BOX_T_SCALE: Self;
+    /// See `MIN_DIR` in the shader.
+    const MIN_DIR: Self;
+    /// Wächter-Binder offset constants; the f64 ones scale the f32 ones by
+    /// the ratio of the two machine epsilons.
+    const OFFSET_ORIGIN: Self;
+    const OFFSET_FLOAT_SCALE: Self;
+    const OFFSET_INT_SCALE: Self;
+
+    fn from_f64(x: f64) -> Self;
+    fn from_f32(x: f32) -> Self;
+    fn from_u32(x: u32) -> Self;
+    fn to_f32(self) -> f32;
+    fn sqrt(self) -> Self;
+    fn inverse_sqrt(self) -> Self;
+    fn powf(self, y: Self) -> Self;
+    fn min(self, o: Self) -> Self;
+    fn max(self, o: Self) -> Self;
+    fn abs(self) -> Self;
+    fn sign_nonzero(self) -> Self {
+        if self >= Self::ZERO {
+            Self::ONE
+        } else {
+            -Self::ONE
+        }
+    }
+
+    fn v3(x: Self, y: Self, z: Self) -> Self::V3;
+    fn v3_from_f64(v: DVec3) -> Self::V3;
+    fn v3_from_f32(v: [f32; 3]) -> Self::V3;
+    fn v3_to_f32(v: Self::V3) -> [f32; 3];
+    fn dot(a: Self::V3, b: Self::V3) -> Self;
+    fn cross(a: Self::V3, b: Self::V3) -> Self::V3;
+    fn normalize(v: Self::V3) -> Self::V3;
+    fn vmin(a: Self::V3, b: Self::V3) -> Self::V3;
+    fn vmax(a: Self::V3, b: Self::V3) -> Self::V3;
+    fn clamp01(v: Self::V3) -> Self::V3;
+    fn vabs(v: Self::V3) -> Self::V3;
+
+    /// Moves `p` off its surface along `n` by whole ulps (Ray Tracing Gems ch. 6).
+    fn offset_ray(p: Self::V3, n: Self::V3) -> Self::V3;
+}
+
+macro_rules! impl_real {
+    ($t:ty, $v:ty, $i:ty, $eps_ratio:expr) => {
+        impl Real for $t {
+            type V3 = $v;
+            const ZERO: Self = 0.0;
+            const ONE: Self = 1.0;
+            const TWO: Self = 2.0;
+            const HALF: Self = 0.5;
+            const T_INF: Self = <$t>::MAX;
+            const BOX_T_SCALE: Self = {
+                // gamma(3) = 3u / (1 - 3u), u = unit roundoff = EPSILON / 2.
+                let u = <$t>::EPSILON * 0.5;
+                1.0 + 2.0 * (3.0 * u / (1.0 - 3.0 * u))
+            };
+            const MIN_DIR: Self = 1e-30;
+            const OFFSET_ORIGIN: Self = 1.0 / 32.0;
+            const OFFSET_FLOAT_SCALE: Self = 1.0 / 65536.0 * $eps_ratio;
+            const OFFSET_INT_SCALE: Self = 256.0;
+
+            fn from_f64(x: f64) -> Self {
+                x as $t
+            }
+            fn from_f32(x: f32) -> Self {
+                x as $t
+            }
+            fn from_u32(x: u32) -> Self {
+                x as $t
+            }
+            fn to_f32(self) -> f32 {
+                self as f32
+            }
+            fn sqrt(self) -> Self {
+                <$t>::sqrt(self)
+            }
+            fn inverse_sqrt(self) -> Self {
+                1.0 / <$t>::sqrt(self)
+            }
+            fn powf(self, y: Self) -> Self {
+                <$t>::powf(self, y)
+            }
+            fn min(self, o: Self) -> Self {
+                <$t>::min(self, o)
+            }
+            fn max(self, o: Self) -> Self {
+                <$t>::max(self, o)
+            }
+            fn abs(self) -> Self {
+                <$t>::abs(self)
+            }
+            fn v3(x: Self, y: Self, z: Self) -> $v {
+                <$v>::new(x, y, z)
+            }
+            fn v3_from_f64(v: DVec3) -> $v {
+                <$v>::new(v.x as $t, v.y as $t, v.z as $t)
+            }
+            fn v3_from_f32(v: [f32; 3]) -> $v {
+                <$v>::new(v[0] as $t, v[1] as $t, v[2] as $t)
+            }
+            fn v3_to_f32(v: $v) -> [f32; 3] {
+                [v.x as f32, v.y as f32, v.z as f32]
+            }
+            fn dot(a: $v, b: $v) -> Self {
+                a.dot(b)
+            }
+            fn cross(a: $v, b: $v) -> $v {
+                a.cross(b)
+            }
+            fn normalize(v: $v) -> $v {
+                v * (1.0 / v.dot(v).sqrt())
+            }
+            fn vmin(a: $v, b: $v) -> $v {
+                a.min(b)
+            }
+            fn vmax(a: $v, b: $v) -> $v {
+                a.max(b)
+            }
+            fn clamp01(v: $v) -> $v {
+                v.clamp(<$v>::ZERO, <$v>::ONE)
+            }
+            fn vabs(v: $v) -> $v {
+                v.abs()
+            }
+            fn offset_ray(p: $v, n: $v) -> $v {
+                let off = |p: $t, n: $t| -> $t {
+                    // Truncation toward zero, as the shader's vec3<i32>(f32).
+                    let of_i = (Self::OFFSET_INT_SCALE * n) as $i;
+                    let bits = p.to_bits() as $i;
+                    let moved = if p < 0.0 {
+                        bits.wrapping_sub(of_i)
+                    } else {
+                        bits.wrapping_add(of_i)
+                    };
+                    if p.abs() < Self::OFFSET_ORIGIN {
+                        p + Self::OFFSET_FLOAT_SCALE * n
+                    } else {
+                        <$t>::from_bits(moved as _)
+                    }
+                };
+                <$v>::new(off(p.x, n.x), off(p.y, n.y), off(p.z, n.z))
+            }
+        }
+    };
+}
+
+impl_real!(f32, Vec3, i32, 1.0);
+impl_real!(f64, DVec3, i64, (f64::EPSILON / f32::EPSILON as f64));

@@ -1,0 +1,439 @@
+//! The shader's algorithm on the CPU, function for function and name for name
+//! (`shaders/trace.wgsl`), generic over f32 (the shader's twin) and f64.
+//! Comments on the why live in the shader; this file stays a mirror of it.
+
+use crate::bvh::Bvh;
+use crate::camera::Camera;
+use crate::layout::{GpuBvhNode, SPHERE_BIT};
+use crate::scene::Scene;
+
+use super::real::Real;
+
+pub const NO_HIT: u32 = u32::MAX;
+
+#[derive(Clone, Copy, Debug)]
+pub struct Sphere<R: Real> {
+    pub center: R::V3,
+    pub radius: R,
+    pub kd: R::V3,
+    pub ks: R::V3,
+    pub shininess: R,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct VertexShading<R: Real> {
+    pub normal: R::V3,
+    pub kd: R::V3,
+    pub ks: R::V3,
+    pub shininess: R,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct Light<R: Real> {
+    pub position: R::V3,
+    pub color: R::V3,
+}
+
+/// The scene as the CPU reference reads it: the shader's buffers, in `R`.
+/// The BVH is shared with the GPU (f32 boxes, rounded outward).
+pub struct CpuScene<'a, R: Real> {
+    pub spheres: Vec<Sphere<R>>,
+    pub triangles: Vec<[R::V3; 3]>,
+    pub shading: Vec<[VertexShading<R>; 3]>,
+    pub lights: Vec<Light<R>>,
+    pub nodes: &'a [GpuBvhNode],
+    pub prim_refs: &'a [u32],
+    pub ambient: R::V3,
+    pub background: R::V3,
+    pub half_extent: [R; 2],
+    pub size: [u32; 2],
+}
+
+impl<'a, R: Real> CpuScene<'a, R> {
+    pub fn new(scene: &Scene, bvh: &'a Bvh, camera: &Camera, background: [f32; 3]) -> Self {
+        let v = R::v3_from_f64;
+        // The f32 path rounds exactly as the GPU packing does (f64 -> f32 once).
+        let half = camera.half_extent_f32();
+        let half_extent = if std::mem::size_of::<R>() == 4 {
+            [R::from_f32(half[0]), R::from_f32(half[1])]
+        } else {
+            [
+                R::from_f64(camera.half_extent[0]),
+                R::from_f64(camera.half_extent[1]),
+            ]
+        };
+        CpuScene {
+            spheres: scene
+                .spheres
+                .iter()
+                .map(|s| Sphere {
+                    center: v(s.center),
+                    radius: R::from_f64(s.radius),
+                    kd: v(s.material.kd),
+                    ks: v(s.material.ks),
+                    shininess: R::from_f64(s.material.shininess),
+                })
+                .collect(),
+            triangles: scene
+                .triangles
+                .iter()
+                .map(|t| t.vertices.map(|x| v(x.position)))
+                .collect(),
+            shading: scene
+                .triangles
+                .iter()
+                .map(|t| {
+                    t.vertices.map(|x| VertexShading {
+                        normal: v(x.normal),
+                        kd: v(x.material.kd),
+                        ks: v(x.material.ks),
+                        shininess: R::from_f64(x.material.shininess),
+                    })
+                })
+                .collect(),
+            lights: scene
+                .lights
+                .iter()
+                .map(|l| Light {
+                    position: v(l.position),
+                    color: v(l.color),
+                })
+                .collect(),
+            nodes: &bvh.nodes,
+            prim_refs: &bvh.prim_refs,
+            ambient: v(scene.ambient),
+            background: R::v3_from_f32(background),
+            half_extent,
+            size: [camera.width, camera.height],
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct Ray<R: Real> {
+    pub origin: R::V3,
+    pub dir: R::V3,
+    pub inv_dir: R::V3,
+    pub k: [usize; 3],
+    pub shear: R::V3,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct Hit<R: Real> {
+    pub t: R,
+    pub prim: u32,
+    pub b1: R,
+    pub b2: R,
+}
+
+pub fn make_ray<R: Real>(origin: R::V3, dir: R::V3) -> Ray<R> {
+    let safe = |d: R| {
+        if d.abs() < R::MIN_DIR {
+            d.sign_nonzero() * R::MIN_DIR
+        } else {
+            d
+        }
+    };
+    let inv_dir = R::v3(
+        R::ONE / safe(dir[0]),
+        R::ONE / safe(dir[1]),
+        R::ONE / safe(dir[2]),
+    );
+    let a = R::vabs(dir);
+    let kz = if a[0] > a[1] && a[0] > a[2] {
+        0
+    } else if a[1] > a[2] {
+        1
+    } else {
+        2
+    };
+    let mut kx = (kz + 1) % 3;
+    let mut ky = (kx + 1) % 3;
+    if dir[kz] < R::ZERO {
+        std::mem::swap(&mut kx, &mut ky);
+    }
+    let sz = R::ONE / dir[kz];
+    Ray {
+        origin,
+        dir,
+        inv_dir,
+        k: [kx, ky, kz],
+        shear: R::v3(dir[kx] * sz, dir[ky] * sz, sz),
+    }
+}
+
+pub fn pixel_ray<R: Real>(scene: &CpuScene<R>, x: u32, y: u32) -> Ray<R> {
+    let (w, h) = (R::from_u32(scene.size[0]), R::from_u32(scene.size[1]));
+    let ndc_x = (R::TWO * (R::from_u32(x) + R::HALF) / w - R::ONE) * scene.half_extent[0];
+    let ndc_y = (R::ONE - R::TWO * (R::from_u32(y) + R::HALF) / h) * scene.half_extent[1];
+    let zero = R::v3(R::ZERO, R::ZERO, R::ZERO);
+    make_ray(zero, R::normalize(R::v3(ndc_x, ndc_y, -R::ONE)))
+}
+
+pub fn hit_aabb<R: Real>(ray: &Ray<R>, bmin: [f32; 3], bmax: [f32; 3], t_max: R) -> R {
+    let t0 = (R::v3_from_f32(bmin) - ray.origin) * ray.inv_dir;
+    let t1 = (R::v3_from_f32(bmax) - ray.origin) * ray.inv_dir;
+    let tn = R::vmin(t0, t1);
+    let tf = R::vmax(t0, t1);
+    let t_near = tn[0].max(tn[1]).max(tn[2].max(R::ZERO));
+    let t_far = tf[0].min(tf[1]).min(tf[2].min(t_max)) * R::BOX_T_SCALE;
+    if t_near <= t_far {
+        t_near
+    } else {
+        R::T_INF
+    }
+}
+
+pub fn hit_sphere<R: Real>(ray: &Ray<R>, s: &Sphere<R>, t_max: R) -> R {
+    let f = ray.origin - s.center;
+    let a = R::dot(ray.dir, ray.dir);
+    let b = -R::dot(f, ray.dir);
+    let c = R::dot(f, f) - s.radius * s.radius;
+    let l = f + ray.dir * (b / a);
+    let disc = s.radius * s.radius - R::dot(l, l);
+    if disc < R::ZERO {
+        return R::T_INF;
+    }
+    let q = b + b.sign_nonzero() * (a * disc).sqrt();
+    let t0 = c / q;
+    let t1 = q / a;
+    let t_lo = t0.min(t1);
+    let t_hi = t0.max(t1);
+    if t_lo > R::ZERO && t_lo < t_max {
+        return t_lo;
+    }
+    if t_hi > R::ZERO && t_hi < t_max {
+        return t_hi;
+    }
+    R::T_INF
+}
+
+/// Returns (t, b1, b2), t = `T_INF` for a miss.
+pub fn hit_triangle<R: Real>(ray: &Ray<R>, tri: &[R::V3; 3], t_max: R) -> (R, R, R) {
+    let miss = (R::T_INF, R::ZERO, R::ZERO);
+    let a = tri[0] - ray.origin;
+    let b = tri[1] - ray.origin;
+    let c = tri[2] - ray.origin;
+    let [kx, ky, kz] = ray.k;
+    let s = ray.shear;
+    let ax = a[kx] - s[0] * a[kz];
+    let ay = a[ky] - s[1] * a[kz];
+    let bx = b[kx] - s[0] * b[kz];
+    let by = b[ky] - s[1] * b[kz];
+    let cx = c[kx] - s[0] * c[kz];
+    let cy = c[ky] - s[1] * c[kz];
+    let u = cx * by - cy * bx;
+    let v = ax * cy - ay * cx;
+    let w = bx * ay - by * ax;
+    let zero = R::ZERO;
+    if (u < zero || v < zero || w < zero) && (u > zero || v > zero || w > zero) {
+        return miss;
+    }
+    let det = u + v + w;
+    if det == zero {
+        return miss;
+    }
+    let az = s[2] * a[kz];
+    let bz = s[2] * b[kz];
+    let cz = s[2] * c[kz];
+    let t_scaled = u * az + v * bz + w * cz;
+    let positive = t_scaled > zero && t_scaled < t_max * det;
+    let negative = t_scaled < zero && t_scaled > t_max * det;
+    let inside = if det > zero { positive } else { negative };
+    if !inside {
+        return miss;
+    }
+    let inv_det = R::ONE / det;
+    (t_scaled * inv_det, v * inv_det, w * inv_det)
+}
+
+fn hit_leaf<R: Real>(
+    scene: &CpuScene<R>,
+    ray: &Ray<R>,
+    node: &GpuBvhNode,
+    best: &mut Hit<R>,
+    any_hit: bool,
+) -> bool {
+    let first = node.right_or_first as usize;
+    for &prim in &scene.prim_refs[first..first + node.count as usize] {
+        let index = (prim & !SPHERE_BIT) as usize;
+        if prim & SPHERE_BIT != 0 {
+            let t = hit_sphere(ray, &scene.spheres[index], best.t);
+            if t < best.t {
+                *best = Hit {
+                    t,
+                    prim,
+                    b1: R::ZERO,
+                    b2: R::ZERO,
+                };
+                if any_hit {
+                    return true;
+                }
+            }
+        } else {
+            let (t, b1, b2) = hit_triangle(ray, &scene.triangles[index], best.t);
+            if t < best.t {
+                *best = Hit { t, prim, b1, b2 };
+                if any_hit {
+                    return true;
+                }
+            }
+        }
+    }
+    false
+}
+
+pub fn traverse<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>, t_max: R, any_hit: bool) -> Hit<R> {
+    let mut best = Hit {
+        t: t_max,
+        prim: NO_HIT,
+        b1: R::ZERO,
+        b2: R::ZERO,
+    };
+    let nodes = scene.nodes;
+    if nodes.is_empty() || hit_aabb(ray, nodes[0].min, nodes[0].max, t_max) == R::T_INF {
+        return best;
+    }
+    let mut stack = [0usize; crate::layout::BVH_MAX_DEPTH as usize];
+    let mut sp = 0;
+    let mut index = 0;
+    loop {
+        let node = &nodes[index];
+        if node.count > 0 {
+            if hit_leaf(scene, ray, node, &mut best, any_hit) {
+                return best;
+            }
+            if sp == 0 {
+                break;
+            }
+            sp -= 1;
+            index = stack[sp];
+            continue;
+        }
+        let left = index + 1;
+        let right = node.right_or_first as usize;
+        let t_left = hit_aabb(ray, nodes[left].min, nodes[left].max, best.t);
+        let t_right = hit_aabb(ray, nodes[right].min, nodes[right].max, best.t);
+        if t_left == R::T_INF && t_right == R::T_INF {
+            if sp == 0 {
+                break;
+            }
+            sp -= 1;
+            index = stack[sp];
+        } else if t_right == R::T_INF {
+            index = left;
+        } else if t_left == R::T_INF {
+            index = right;
+        } else {
+            let left_first = t_left <= t_right;
+            index = if left_first { left } else { right };
+            stack[sp] = if left_first { right } else { left };
+            sp += 1;
+        }
+    }
+    best
+}
+
+pub fn trace_closest<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>) -> Hit<R> {
+    traverse(scene, ray, R::T_INF, false)
+}
+
+pub fn occluded<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>) -> bool {
+    traverse(scene, ray, R::ONE, true).prim != NO_HIT
+}
+
+pub fn safe_normalize<R: Real>(v: R::V3, fallback: R::V3) -> R::V3 {
+    let len2 = R::dot(v, v);
+    if len2 > R::ZERO {
+        v * len2.inverse_sqrt()
+    } else {
+        fallback
+    }
+}
+
+pub fn pow_c<R: Real>(x: R, y: R) -> R {
+    if y == R::ZERO {
+        return R::ONE;
+    }
+    if x <= R::ZERO {
+        return R::ZERO;
+    }
+    x.powf(y)
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct SurfacePoint<R: Real> {
+    pub p: R::V3,
+    pub n: R::V3,
+    pub ng: R::V3,
+    pub kd: R::V3,
+    pub ks: R::V3,
+    pub shininess: R,
+}
+
+pub fn surface_point<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>, hit: &Hit<R>) -> SurfacePoint<R> {
+    let index = (hit.prim & !SPHERE_BIT) as usize;
+    if hit.prim & SPHERE_BIT != 0 {
+        let s = &scene.spheres[index];
+        let p = ray.origin + ray.dir * hit.t;
+        let n = (p - s.center) * (R::ONE / s.radius);
+        return SurfacePoint {
+            p,
+            n,
+            ng: n,
+            kd: s.kd,
+            ks: s.ks,
+            shininess: s.shininess,
+        };
+    }
+    let tri = &scene.triangles[index];
+    let b0 = R::ONE - hit.b1 - hit.b2;
+    let w = [b0, hit.b1, hit.b2];
+    let p = tri[0] * w[0] + tri[1] * w[1] + tri[2] * w[2];
+    let up = R::v3(R::ZERO, R::ZERO, R::ONE);
+    let ng = safe_normalize::<R>(R::cross(tri[1] - tri[0], tri[2] - tri[0]), up);
+    let s = &scene.shading[index];
+    let n = safe_normalize::<R>(
+        s[0].normal * w[0] + s[1].normal * w[1] + s[2].normal * w[2],
+        ng,
+    );
+    SurfacePoint {
+        p,
+        n,
+        ng,
+        kd: s[0].kd * w[0] + s[1].kd * w[1] + s[2].kd * w[2],
+        ks: s[0].ks * w[0] + s[1].ks * w[1] + s[2].ks * w[2],
+        shininess: w[0] * s[0].shininess + w[1] * s[1].shininess + w[2] * s[2].shininess,
+    }
+}
+
+pub fn shade_phong<R: Real>(scene: &CpuScene<R>, sp: &SurfacePoint<R>, view: R::V3) -> R::V3 {
+    let mut color = scene.ambient;
+    for light in &scene.lights {
+        let to_light = light.position - sp.p;
+        let side = if R::dot(sp.ng, to_light) >= R::ZERO {
+            sp.ng
+        } else {
+            -sp.ng
+        };
+        let origin = R::offset_ray(sp.p, side);
+        if occluded(scene, &make_ray(origin, light.position - origin)) {
+            continue;
+        }
+        let l = safe_normalize::<R>(to_light, sp.n);
+        let ln = R::dot(l, sp.n);
+        let r = sp.n * (R::TWO * ln) - l;
+        let rv = R::dot(r, view).max(R::ZERO);
+        let spec = pow_c(rv, sp.shininess);
+        color = color + light.color * (sp.kd * ln.max(R::ZERO) + sp.ks * spec);
+    }
+    R::clamp01(color)
+}
+
+pub fn trace_primary<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>) -> R::V3 {
+    let hit = trace_closest(scene, ray);
+    if hit.prim == NO_HIT {
+        return R::clamp01(scene.background);
+    }
+    shade_phong(scene, &surface_point(scene, ray, &hit), -ray.dir)
+}

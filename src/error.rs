@@ -1,0 +1,45 @@
+//! The library's error type. Every variant says what failed and where; the
+//! CLI maps them to exit codes (`Error::exit_code`).
+
+use std::path::PathBuf;
+
+use crate::gpu::GpuError;
+use crate::scene::ParseError;
+
+#[derive(Debug, thiserror::Error)]
+pub enum Error {
+    #[error("cannot read scene file {path}: {source}")]
+    ReadScene {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error(transparent)]
+    Parse(#[from] ParseError),
+    #[error(transparent)]
+    Gpu(#[from] GpuError),
+    #[error("cannot write image {path}: {source}")]
+    WriteImage {
+        path: PathBuf,
+        source: std::io::Error,
+    },
+    #[error("cannot read image {path}: {message}")]
+    ReadImage { path: PathBuf, message: String },
+    #[error("{0}: unsupported image type; use a .png, .jpg or .jpeg file name")]
+    UnsupportedImageFormat(PathBuf),
+    #[error("images differ in size: {0}x{1} vs {2}x{3}")]
+    SizeMismatch(u32, u32, u32, u32),
+    #[error("invalid option: {0}")]
+    InvalidOption(String),
+}
+
+impl Error {
+    /// 2: bad input (scene file missing or malformed); 3: no usable Vulkan
+    /// device; 1: anything else.
+    pub fn exit_code(&self) -> i32 {
+        match self {
+            Error::ReadScene { .. } | Error::Parse(_) => 2,
+            Error::Gpu(GpuError::Loader(_) | GpuError::NoDevice | GpuError::DeviceNotFound(_)) => 3,
+            _ => 1,
+        }
+    }
+}

@@ -1,0 +1,462 @@
+//! Vulkan instance and device: loading the library at run time (no SDK to
+//! build), choosing a device, and the memory allocator. Everything else in
+//! `gpu` holds an `Arc<Shared>` so destruction happens once, in order, after
+//! the device is idle.
+
+use std::ffi::{c_char, CStr};
+use std::fmt;
+use std::mem::ManuallyDrop;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{Arc, Mutex, MutexGuard};
+
+use ash::vk;
+use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
+
+use super::debug::DebugMessenger;
+use super::error::{GpuError, VkResultExt};
+
+const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
+
+/// How to pick a device among those `list_devices` reports.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub enum DeviceSelector {
+    /// Position in `glint devices`.
+    Index(usize),
+    /// Case-insensitive substring of the device name.
+    Name(String),
+}
+
+impl DeviceSelector {
+    /// A number selects by index, anything else by name.
+    pub fn parse(s: &str) -> DeviceSelector {
+        match s.parse() {
+            Ok(i) => DeviceSelector::Index(i),
+            Err(_) => DeviceSelector::Name(s.to_string()),
+        }
+    }
+}
+
+impl fmt::Display for DeviceSelector {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            DeviceSelector::Index(i) => write!(f, "{i}"),
+            DeviceSelector::Name(n) => f.write_str(n),
+        }
+    }
+}
+
+#[derive(Clone, Debug, Default)]
+pub struct ContextOptions {
+    /// `None` picks the best device: discrete > integrated > virtual > CPU.
+    pub device: Option<DeviceSelector>,
+    /// Enable VK_LAYER_KHRONOS_validation when it is installed.
+    pub validation: bool,
+}
+
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct DeviceInfo {
+    pub index: usize,
+    pub name: String,
+    pub device_type: String,
+    pub driver: String,
+    pub api_version: String,
+    has_compute: bool,
+    rank: u8,
+}
+
+pub(crate) struct Shared {
+    _entry: ash::Entry,
+    pub instance: ash::Instance,
+    debug: Option<DebugMessenger>,
+    pub device: ash::Device,
+    pub queue: vk::Queue,
+    pub queue_family: u32,
+    allocator: ManuallyDrop<Mutex<Allocator>>,
+    pub info: DeviceInfo,
+    pub validation: bool,
+    poisoned: AtomicBool,
+}
+
+impl Shared {
+    pub fn allocator(&self) -> MutexGuard<'_, Allocator> {
+        // A panic while allocating cannot leave the allocator half-updated in a
+        // way that matters to us; keep using it.
+        self.allocator.lock().unwrap_or_else(|e| e.into_inner())
+    }
+
+    /// After a timeout or lost device the GPU may still be using resources:
+    /// from then on, drops leak instead of destroying (and never wait).
+    pub fn poison(&self) {
+        self.poisoned.store(true, Ordering::SeqCst);
+    }
+
+    pub fn is_poisoned(&self) -> bool {
+        self.poisoned.load(Ordering::SeqCst)
+    }
+}
+
+impl Drop for Shared {
+    fn drop(&mut self) {
+        if self.is_poisoned() {
+            return;
+        }
+        // SAFETY: every other wrapper holds an Arc<Shared> and is gone by now;
+        // we wait for the device, then destroy in reverse creation order.
+        unsafe {
+            let _ = self.device.device_wait_idle();
+            ManuallyDrop::drop(&mut self.allocator);
+            self.device.destroy_device(None);
+            if let Some(debug) = &self.debug {
+                debug.destroy();
+            }
+            self.instance.destroy_instance(None);
+        }
+    }
+}
+
+/// A Vulkan device ready to run glint's pipelines.
+#[derive(Clone)]
+pub struct Context {
+    pub(crate) shared: Arc<Shared>,
+}
+
+fn load_entry() -> Result<ash::Entry, GpuError> {
+    // SAFETY: loading the system Vulkan loader; its initialisation has no
+    // preconditions beyond being a genuine loader library.
+    unsafe { ash::Entry::load() }.map_err(|e| GpuError::Loader(e.to_string()))
+}
+
+struct Instance {
+    entry: ash::Entry,
+    instance: ash::Instance,
+    debug: Option<DebugMessenger>,
+    version: u32,
+}
+
+fn create_instance(validation: bool) -> Result<Instance, GpuError> {
+    let entry = load_entry()?;
+    // SAFETY: plain queries on a loaded entry.
+    let (exts, layers, loader_version) = unsafe {
+        (
+            entry
+                .enumerate_instance_extension_properties(None)
+                .call("vkEnumerateInstanceExtensionProperties")?,
+            entry
+                .enumerate_instance_layer_properties()
+                .call("vkEnumerateInstanceLayerProperties")?,
+            entry
+                .try_enumerate_instance_version()
+                .call("vkEnumerateInstanceVersion")?
+                .unwrap_or(vk::API_VERSION_1_0),
+        )
+    };
+    let has_ext = |name: &CStr| exts.iter().any(|e| e.extension_name_as_c_str() == Ok(name));
+    let has_layer = layers
+        .iter()
+        .any(|l| l.layer_name_as_c_str() == Ok(VALIDATION_LAYER));
+    let validation = validation && has_layer;
+    let mut ext_names: Vec<*const c_char> = Vec::new();
+    let mut flags = vk::InstanceCreateFlags::empty();
+    // MoltenVK only shows up through portability enumeration.
+    if has_ext(ash::khr::portability_enumeration::NAME) {
+        ext_names.push(ash::khr::portability_enumeration::NAME.as_ptr());
+        flags |= vk::InstanceCreateFlags::ENUMERATE_PORTABILITY_KHR;
+    }
+    let debug_utils = validation && has_ext(ash::ext::debug_utils::NAME);
+    if debug_utils {
+        ext_names.push(ash::ext::debug_utils::NAME.as_ptr());
+    }
+    let layer_names: Vec<*const c_char> = if validation {
+        vec![VALIDATION_LAYER.as_ptr()]
+    } else {
+        Vec::new()
+    };
+    // 1.1 gives vkGetPhysicalDeviceProperties2 (driver names); glint needs
+    // nothing newer, and a 1.0 loader still works.
+    let version = if loader_version >= vk::API_VERSION_1_1 {
+        vk::API_VERSION_1_1
+    } else {
+        vk::API_VERSION_1_0
+    };
+    let app = vk::ApplicationInfo::default()
+        .application_name(c"glint")
+        .engine_name(c"glint")
+        .api_version(version);
+    let info = vk::InstanceCreateInfo::default()
+        .application_info(&app)
+        .flags(flags)
+        .enabled_extension_names(&ext_names)
+        .enabled_layer_names(&layer_names);
+    // SAFETY: every pointer in `info` outlives the call.
+    let instance = unsafe { entry.create_instance(&info, None) }.call("vkCreateInstance")?;
+    let debug = if debug_utils {
+        Some(DebugMessenger::new(&entry, &instance)?)
+    } else {
+        None
+    };
+    Ok(Instance {
+        entry,
+        instance,
+        debug,
+        version,
+    })
+}
+
+fn describe(instance: &Instance, pd: vk::PhysicalDevice, index: usize) -> DeviceInfo {
+    let inst = &instance.instance;
+    // SAFETY: `pd` comes from this instance.
+    let props = unsafe { inst.get_physical_device_properties(pd) };
+    // SAFETY: as above.
+    let families = unsafe { inst.get_physical_device_queue_family_properties(pd) };
+    let mut driver = format!("driver version {:#x}", props.driver_version);
+    if instance.version >= vk::API_VERSION_1_1 && props.api_version >= vk::API_VERSION_1_2 {
+        let mut driver_props = vk::PhysicalDeviceDriverProperties::default();
+        let mut props2 = vk::PhysicalDeviceProperties2::default().push_next(&mut driver_props);
+        // SAFETY: 1.1 instance, 1.2 device: the driver-properties chain is valid.
+        unsafe { inst.get_physical_device_properties2(pd, &mut props2) };
+        let name = driver_props.driver_name_as_c_str().unwrap_or_default();
+        let info = driver_props.driver_info_as_c_str().unwrap_or_default();
+        driver = format!("{} {}", name.to_string_lossy(), info.to_string_lossy())
+            .trim()
+            .to_string();
+    }
+    let (device_type, rank) = match props.device_type {
+        vk::PhysicalDeviceType::DISCRETE_GPU => ("discrete GPU", 4),
+        vk::PhysicalDeviceType::INTEGRATED_GPU => ("integrated GPU", 3),
+        vk::PhysicalDeviceType::VIRTUAL_GPU => ("virtual GPU", 2),
+        vk::PhysicalDeviceType::CPU => ("CPU", 1),
+        _ => ("other", 0),
+    };
+    let v = props.api_version;
+    DeviceInfo {
+        index,
+        name: props
+            .device_name_as_c_str()
+            .map(|n| n.to_string_lossy().into_owned())
+            .unwrap_or_else(|_| "(unnamed)".into()),
+        device_type: device_type.to_string(),
+        driver,
+        api_version: format!(
+            "{}.{}.{}",
+            vk::api_version_major(v),
+            vk::api_version_minor(v),
+            vk::api_version_patch(v)
+        ),
+        has_compute: families
+            .iter()
+            .any(|f| f.queue_flags.contains(vk::QueueFlags::COMPUTE)),
+        rank,
+    }
+}
+
+fn physical_devices(instance: &Instance) -> Result<Vec<vk::PhysicalDevice>, GpuError> {
+    // SAFETY: plain query on a live instance.
+    unsafe { instance.instance.enumerate_physical_devices() }.call("vkEnumeratePhysicalDevices")
+}
+
+/// Every Vulkan device the loader reports, in its order (the indices
+/// `--device` takes).
+pub fn list_devices() -> Result<Vec<DeviceInfo>, GpuError> {
+    let instance = create_instance(false)?;
+    let devices = physical_devices(&instance).map(|pds| {
+        pds.iter()
+            .enumerate()
+            .map(|(i, &pd)| describe(&instance, pd, i))
+            .collect()
+    });
+    // SAFETY: nothing else was created from this instance.
+    unsafe { instance.instance.destroy_instance(None) };
+    devices
+}
+
+fn choose(devices: &[DeviceInfo], selector: Option<&DeviceSelector>) -> Result<usize, GpuError> {
+    let usable = || devices.iter().filter(|d| d.has_compute);
+    let found = match selector {
+        None => usable()
+            .max_by_key(|d| (d.rank, std::cmp::Reverse(d.index)))
+            .ok_or(GpuError::NoDevice)?,
+        Some(sel @ DeviceSelector::Index(i)) => usable()
+            .find(|d| d.index == *i)
+            .ok_or_else(|| GpuError::DeviceNotFound(sel.to_string()))?,
+        Some(sel @ DeviceSelector::Name(name)) => {
+            let name = name.to_lowercase();
+            usable()
+                .find(|d| d.name.to_lowercase().contains(&name))
+                .ok_or_else(|| GpuError::DeviceNotFound(sel.to_string()))?
+        }
+    };
+    Ok(found.index)
+}
+
+impl Context {
+    pub fn new(options: &ContextOptions) -> Result<Context, GpuError> {
+        let instance = create_instance(options.validation)?;
+        match Self::with_instance(&instance, options) {
+            Ok((device, pd, info, queue_family)) => {
+                Self::finish(instance, device, pd, info, queue_family)
+            }
+            Err(e) => {
+                // SAFETY: no device was created; tear down what we made.
+                unsafe {
+                    if let Some(d) = &instance.debug {
+                        d.destroy();
+                    }
+                    instance.instance.destroy_instance(None);
+                }
+                Err(e)
+            }
+        }
+    }
+
+    fn with_instance(
+        instance: &Instance,
+        options: &ContextOptions,
+    ) -> Result<(ash::Device, vk::PhysicalDevice, DeviceInfo, u32), GpuError> {
+        let pds = physical_devices(instance)?;
+        let infos: Vec<DeviceInfo> = pds
+            .iter()
+            .enumerate()
+            .map(|(i, &pd)| describe(instance, pd, i))
+            .collect();
+        let index = choose(&infos, options.device.as_ref())?;
+        let pd = pds[index];
+        let inst = &instance.instance;
+        // SAFETY: plain queries on a physical device of this instance.
+        let (families, dev_exts) = unsafe {
+            (
+                inst.get_physical_device_queue_family_properties(pd),
+                inst.enumerate_device_extension_properties(pd)
+                    .call("vkEnumerateDeviceExtensionProperties")?,
+            )
+        };
+        // Prefer a compute-only family (async compute on discrete GPUs).
+        let family = families
+            .iter()
+            .enumerate()
+            .filter(|(_, f)| f.queue_flags.contains(vk::QueueFlags::COMPUTE))
+            .min_by_key(|(_, f)| f.queue_flags.contains(vk::QueueFlags::GRAPHICS))
+            .map(|(i, _)| i as u32)
+            .ok_or(GpuError::NoDevice)?;
+        let mut ext_names: Vec<*const c_char> = Vec::new();
+        // The spec requires enabling portability_subset wherever it is listed.
+        if dev_exts
+            .iter()
+            .any(|e| e.extension_name_as_c_str() == Ok(ash::khr::portability_subset::NAME))
+        {
+            ext_names.push(ash::khr::portability_subset::NAME.as_ptr());
+        }
+        let priorities = [1.0f32];
+        let queues = [vk::DeviceQueueCreateInfo::default()
+            .queue_family_index(family)
+            .queue_priorities(&priorities)];
+        let info = vk::DeviceCreateInfo::default()
+            .queue_create_infos(&queues)
+            .enabled_extension_names(&ext_names);
+        // SAFETY: every pointer in `info` outlives the call.
+        let device = unsafe { inst.create_device(pd, &info, None) }.call("vkCreateDevice")?;
+        Ok((device, pd, infos[index].clone(), family))
+    }
+
+    fn finish(
+        instance: Instance,
+        device: ash::Device,
+        physical: vk::PhysicalDevice,
+        info: DeviceInfo,
+        queue_family: u32,
+    ) -> Result<Context, GpuError> {
+        let allocator = Allocator::new(&AllocatorCreateDesc {
+            instance: instance.instance.clone(),
+            device: device.clone(),
+            physical_device: physical,
+            debug_settings: Default::default(),
+            buffer_device_address: false,
+            allocation_sizes: Default::default(),
+        });
+        let allocator = match allocator {
+            Ok(a) => a,
+            Err(e) => {
+                // SAFETY: nothing was created on the device yet.
+                unsafe {
+                    device.destroy_device(None);
+                    if let Some(d) = &instance.debug {
+                        d.destroy();
+                    }
+                    instance.instance.destroy_instance(None);
+                }
+                return Err(GpuError::Alloc {
+                    what: "the allocator".into(),
+                    message: e.to_string(),
+                });
+            }
+        };
+        // SAFETY: the family was requested with one queue at device creation.
+        let queue = unsafe { device.get_device_queue(queue_family, 0) };
+        let validation = instance.debug.is_some();
+        Ok(Context {
+            shared: Arc::new(Shared {
+                _entry: instance.entry,
+                instance: instance.instance,
+                debug: instance.debug,
+                device,
+                queue,
+                queue_family,
+                allocator: ManuallyDrop::new(Mutex::new(allocator)),
+                info,
+                validation,
+                poisoned: AtomicBool::new(false),
+            }),
+        })
+    }
+
+    pub fn info(&self) -> &DeviceInfo {
+        &self.shared.info
+    }
+
+    /// Whether the validation layer and its messenger are active.
+    pub fn validation_active(&self) -> bool {
+        self.shared.validation
+    }
+
+    /// Validation warnings and errors reported so far (0 when inactive).
+    pub fn validation_messages(&self) -> u32 {
+        self.shared.debug.as_ref().map_or(0, DebugMessenger::count)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn dev(index: usize, rank: u8, name: &str) -> DeviceInfo {
+        DeviceInfo {
+            index,
+            name: name.into(),
+            device_type: String::new(),
+            driver: String::new(),
+            api_version: String::new(),
+            has_compute: true,
+            rank,
+        }
+    }
+
+    #[test]
+    fn prefers_discrete_then_lowest_index_and_honours_selectors() {
+        let devices = [
+            dev(0, 1, "llvmpipe"),
+            dev(1, 3, "Intel"),
+            dev(2, 4, "NVIDIA H100"),
+        ];
+        assert_eq!(choose(&devices, None).unwrap(), 2);
+        let sel = DeviceSelector::parse("llvm");
+        assert_eq!(choose(&devices, Some(&sel)).unwrap(), 0);
+        assert_eq!(
+            choose(&devices, Some(&DeviceSelector::parse("1"))).unwrap(),
+            1
+        );
+        assert!(matches!(
+            choose(&devices, Some(&DeviceSelector::parse("7"))),
+            Err(GpuError::DeviceNotFound(_))
+        ));
+        assert!(matches!(choose(&[], None), Err(GpuError::NoDevice)));
+    }
+}

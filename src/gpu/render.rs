@@ -1,0 +1,585 @@
+//! Rendering a packed scene on the GPU, tile by tile.
+//!
+//! Each tile is one submit with its own fence, so no single submission runs
+//! long enough to trip a driver watchdog and the host can report progress.
+//! Two tile slots alternate: while the GPU renders one tile, the host reads
+//! the previous one back. A tile is dispatched into a device-local buffer and
+//! copied into a host-visible one, so shaders never write across PCIe.
+
+use std::sync::Arc;
+use std::time::{Duration, Instant};
+
+use ash::vk;
+use gpu_allocator::MemoryLocation;
+
+use super::buffer::Buffer;
+use super::context::{Context, Shared};
+use super::error::{GpuError, VkResultExt};
+use super::pipeline::{TracePipeline, BINDINGS};
+use crate::camera::Camera;
+use crate::framebuffer::Framebuffer;
+use crate::layout::{padded, GpuScene, GpuTile, WORKGROUP_SIZE};
+use crate::timing::Timings;
+
+/// Tiles in flight at once.
+const SLOTS: usize = 2;
+/// Output texels are `vec4<f32>`.
+const TEXEL_BYTES: u64 = 16;
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GpuRenderOptions {
+    /// Tile edge in pixels; bounds the work in one submit.
+    pub tile_size: u32,
+    /// Longest wait for one tile before giving up with an error.
+    pub tile_timeout: Duration,
+}
+
+impl Default for GpuRenderOptions {
+    fn default() -> Self {
+        GpuRenderOptions {
+            tile_size: 256,
+            tile_timeout: Duration::from_secs(60),
+        }
+    }
+}
+
+/// A device with the trace pipeline built; renders any number of scenes.
+pub struct GpuRenderer {
+    ctx: Context,
+    pipeline: TracePipeline,
+    /// How long building the pipeline took.
+    pub pipeline_time: Duration,
+}
+
+#[derive(Clone, Copy, Debug)]
+struct TileRect {
+    origin: [u32; 2],
+    size: [u32; 2],
+}
+
+/// Per-render Vulkan objects that are not buffers, destroyed on drop.
+struct Pools {
+    shared: Arc<Shared>,
+    command_pool: vk::CommandPool,
+    descriptor_pool: vk::DescriptorPool,
+    fences: Vec<vk::Fence>,
+}
+
+impl Drop for Pools {
+    fn drop(&mut self) {
+        if self.shared.is_poisoned() {
+            return;
+        }
+        let device = &self.shared.device;
+        // SAFETY: every fence was waited on (or never submitted) before drop;
+        // destroying the pools frees their command buffers and sets.
+        unsafe {
+            for &f in &self.fences {
+                device.destroy_fence(f, None);
+            }
+            device.destroy_descriptor_pool(self.descriptor_pool, None);
+            device.destroy_command_pool(self.command_pool, None);
+        }
+    }
+}
+
+struct Slot {
+    tile: Buffer,
+    output: Buffer,
+    readback: Buffer,
+    command: vk::CommandBuffer,
+    fence: vk::Fence,
+    set: vk::DescriptorSet,
+}
+
+impl GpuRenderer {
+    pub fn new(ctx: &Context) -> Result<GpuRenderer, GpuError> {
+        let start = Instant::now();
+        let pipeline = TracePipeline::new(ctx)?;
+        Ok(GpuRenderer {
+            ctx: ctx.clone(),
+            pipeline,
+            pipeline_time: start.elapsed(),
+        })
+    }
+
+    pub fn context(&self) -> &Context {
+        &self.ctx
+    }
+
+    /// Renders `scene` as seen by `camera`. `progress(tiles_done, tiles_total)`
+    /// is called after each tile is read back.
+    pub fn render(
+        &self,
+        scene: &GpuScene,
+        camera: &Camera,
+        background: [f32; 3],
+        options: &GpuRenderOptions,
+        progress: &(dyn Fn(u64, u64) + Sync),
+    ) -> Result<(Framebuffer, Timings), GpuError> {
+        let shared = &self.ctx.shared;
+        let device = &shared.device;
+        let mut timings = Timings::default();
+        let tile_edge = options.tile_size.max(WORKGROUP_SIZE);
+        let tiles = tiles(camera.width, camera.height, tile_edge);
+
+        let mut pools = self.create_pools()?;
+        let upload_start = Instant::now();
+        let frame = scene.frame(camera, background);
+        let scene_buffers = self.upload(
+            &pools,
+            &[
+                (
+                    "frame",
+                    vk::BufferUsageFlags::UNIFORM_BUFFER,
+                    bytemuck::bytes_of(&frame).into(),
+                ),
+                (
+                    "spheres",
+                    vk::BufferUsageFlags::STORAGE_BUFFER,
+                    padded(&scene.spheres),
+                ),
+                (
+                    "triangles",
+                    vk::BufferUsageFlags::STORAGE_BUFFER,
+                    padded(&scene.triangles),
+                ),
+                (
+                    "shading",
+                    vk::BufferUsageFlags::STORAGE_BUFFER,
+                    padded(&scene.shading),
+                ),
+                (
+                    "lights",
+                    vk::BufferUsageFlags::STORAGE_BUFFER,
+                    padded(&scene.lights),
+                ),
+                (
+                    "bvh nodes",
+                    vk::BufferUsageFlags::STORAGE_BUFFER,
+                    padded(&scene.nodes),
+                ),
+                (
+                    "primitive refs",
+                    vk::BufferUsageFlags::STORAGE_BUFFER,
+                    padded(&scene.prim_refs),
+                ),
+            ],
+        )?;
+        let tile_bytes = u64::from(tile_edge) * u64::from(tile_edge) * TEXEL_BYTES;
+        let mut slots = Vec::with_capacity(SLOTS);
+        for i in 0..SLOTS {
+            slots.push(self.create_slot(&mut pools, i, tile_bytes, &scene_buffers)?);
+        }
+        timings.add("upload", upload_start.elapsed());
+
+        let mut fb = Framebuffer {
+            width: camera.width,
+            height: camera.height,
+            pixels: vec![[0.0; 3]; camera.width as usize * camera.height as usize],
+        };
+        let mut in_flight: std::collections::VecDeque<(usize, TileRect)> = Default::default();
+        let mut done = 0u64;
+        let mut dispatch = Duration::ZERO;
+        let mut readback = Duration::ZERO;
+        let dispatch_start = Instant::now();
+        for (i, &rect) in tiles.iter().enumerate() {
+            if in_flight.len() == SLOTS {
+                let (s, r) = in_flight.pop_front().expect("queue is full");
+                readback += self.finish_tile(&slots[s], r, &mut fb, options)?;
+                done += 1;
+                progress(done, tiles.len() as u64);
+            }
+            let slot = &mut slots[i % SLOTS];
+            self.submit_tile(slot, rect)?;
+            in_flight.push_back((i % SLOTS, rect));
+        }
+        while let Some((s, r)) = in_flight.pop_front() {
+            readback += self.finish_tile(&slots[s], r, &mut fb, options)?;
+            done += 1;
+            progress(done, tiles.len() as u64);
+        }
+        dispatch += dispatch_start.elapsed().saturating_sub(readback);
+        timings.add("dispatch", dispatch);
+        timings.add("readback", readback);
+        // SAFETY: all submitted work was waited for above.
+        let _ = unsafe { device.device_wait_idle() };
+        Ok((fb, timings))
+    }
+
+    fn create_pools(&self) -> Result<Pools, GpuError> {
+        let shared = self.ctx.shared.clone();
+        let device = &shared.device;
+        let mut pools = Pools {
+            shared: shared.clone(),
+            command_pool: vk::CommandPool::null(),
+            descriptor_pool: vk::DescriptorPool::null(),
+            fences: Vec::new(),
+        };
+        let uniform = BINDINGS
+            .iter()
+            .filter(|&&t| t == vk::DescriptorType::UNIFORM_BUFFER)
+            .count() as u32;
+        let sizes = [
+            vk::DescriptorPoolSize::default()
+                .ty(vk::DescriptorType::UNIFORM_BUFFER)
+                .descriptor_count(uniform * SLOTS as u32),
+            vk::DescriptorPoolSize::default()
+                .ty(vk::DescriptorType::STORAGE_BUFFER)
+                .descriptor_count((BINDINGS.len() as u32 - uniform) * SLOTS as u32),
+        ];
+        // SAFETY: valid create infos on a live device; handles owned by `pools`.
+        unsafe {
+            pools.command_pool = device
+                .create_command_pool(
+                    &vk::CommandPoolCreateInfo::default()
+                        .queue_family_index(shared.queue_family)
+                        .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER),
+                    None,
+                )
+                .call("vkCreateCommandPool")?;
+            pools.descriptor_pool = device
+                .create_descriptor_pool(
+                    &vk::DescriptorPoolCreateInfo::default()
+                        .max_sets(SLOTS as u32)
+                        .pool_sizes(&sizes),
+                    None,
+                )
+                .call("vkCreateDescriptorPool")?;
+        }
+        Ok(pools)
+    }
+
+    fn command_buffer(&self, pools: &Pools) -> Result<vk::CommandBuffer, GpuError> {
+        let info = vk::CommandBufferAllocateInfo::default()
+            .command_pool(pools.command_pool)
+            .level(vk::CommandBufferLevel::PRIMARY)
+            .command_buffer_count(1);
+        // SAFETY: the pool is live and owned by this thread.
+        Ok(
+            unsafe { self.ctx.shared.device.allocate_command_buffers(&info) }
+                .call("vkAllocateCommandBuffers")?[0],
+        )
+    }
+
+    fn fence(&self, pools: &mut Pools) -> Result<vk::Fence, GpuError> {
+        // SAFETY: plain creation on a live device; destroyed with `pools`.
+        let fence = unsafe {
+            self.ctx
+                .shared
+                .device
+                .create_fence(&vk::FenceCreateInfo::default(), None)
+        }
+        .call("vkCreateFence")?;
+        pools.fences.push(fence);
+        Ok(fence)
+    }
+
+    /// Copies each list into a new device-local buffer through one staging
+    /// buffer and one submit.
+    fn upload(
+        &self,
+        pools: &Pools,
+        items: &[(&str, vk::BufferUsageFlags, std::borrow::Cow<'_, [u8]>)],
+    ) -> Result<Vec<Buffer>, GpuError> {
+        let shared = &self.ctx.shared;
+        let device = &shared.device;
+        let total: u64 = items.iter().map(|(_, _, b)| b.len() as u64).sum();
+        let mut staging = Buffer::new(
+            shared,
+            "staging",
+            total,
+            vk::BufferUsageFlags::TRANSFER_SRC,
+            MemoryLocation::CpuToGpu,
+        )?;
+        let mut bytes = Vec::with_capacity(total as usize);
+        let mut buffers = Vec::with_capacity(items.len());
+        let mut regions = Vec::with_capacity(items.len());
+        for (name, usage, data) in items {
+            let size = data.len() as u64;
+            regions.push(vk::BufferCopy {
+                src_offset: bytes.len() as u64,
+                dst_offset: 0,
+                size,
+            });
+            bytes.extend_from_slice(data);
+            buffers.push(Buffer::new(
+                shared,
+                name,
+                size,
+                *usage | vk::BufferUsageFlags::TRANSFER_DST,
+                MemoryLocation::GpuOnly,
+            )?);
+        }
+        staging.write(&bytes);
+        let cmd = self.command_buffer(pools)?;
+        // SAFETY: recording into a fresh command buffer; every buffer lives
+        // until the wait below returns.
+        unsafe {
+            device
+                .begin_command_buffer(
+                    cmd,
+                    &vk::CommandBufferBeginInfo::default()
+                        .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
+                )
+                .call("vkBeginCommandBuffer")?;
+            for (buffer, region) in buffers.iter().zip(&regions) {
+                device.cmd_copy_buffer(cmd, staging.raw, buffer.raw, &[*region]);
+            }
+            let barrier = vk::MemoryBarrier::default()
+                .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+                .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::UNIFORM_READ);
+            device.cmd_pipeline_barrier(
+                cmd,
+                vk::PipelineStageFlags::TRANSFER,
+                vk::PipelineStageFlags::COMPUTE_SHADER,
+                vk::DependencyFlags::empty(),
+                &[barrier],
+                &[],
+                &[],
+            );
+            device.end_command_buffer(cmd).call("vkEndCommandBuffer")?;
+            let cmds = [cmd];
+            let submit = vk::SubmitInfo::default().command_buffers(&cmds);
+            device
+                .queue_submit(shared.queue, &[submit], vk::Fence::null())
+                .call("vkQueueSubmit")?;
+            device
+                .queue_wait_idle(shared.queue)
+                .call("vkQueueWaitIdle")?;
+            device.free_command_buffers(pools.command_pool, &cmds);
+        }
+        Ok(buffers)
+    }
+
+    fn create_slot(
+        &self,
+        pools: &mut Pools,
+        index: usize,
+        tile_bytes: u64,
+        scene: &[Buffer],
+    ) -> Result<Slot, GpuError> {
+        let shared = &self.ctx.shared;
+        let tile = Buffer::new(
+            shared,
+            &format!("tile {index}"),
+            std::mem::size_of::<GpuTile>() as u64,
+            vk::BufferUsageFlags::UNIFORM_BUFFER,
+            MemoryLocation::CpuToGpu,
+        )?;
+        let output = Buffer::new(
+            shared,
+            &format!("tile output {index}"),
+            tile_bytes,
+            vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC,
+            MemoryLocation::GpuOnly,
+        )?;
+        let readback = Buffer::new(
+            shared,
+            &format!("tile readback {index}"),
+            tile_bytes,
+            vk::BufferUsageFlags::TRANSFER_DST,
+            MemoryLocation::GpuToCpu,
+        )?;
+        let set_layouts = [self.pipeline.set_layout];
+        // SAFETY: the pool was sized for SLOTS sets of this layout.
+        let set = unsafe {
+            shared.device.allocate_descriptor_sets(
+                &vk::DescriptorSetAllocateInfo::default()
+                    .descriptor_pool(pools.descriptor_pool)
+                    .set_layouts(&set_layouts),
+            )
+        }
+        .call("vkAllocateDescriptorSets")?[0];
+        // Binding order: frame, tile, then the scene lists, then output.
+        let mut bound: Vec<&Buffer> = vec![&scene[0], &tile];
+        bound.extend(&scene[1..]);
+        bound.push(&output);
+        let infos: Vec<[vk::DescriptorBufferInfo; 1]> = bound
+            .iter()
+            .map(|b| {
+                [vk::DescriptorBufferInfo::default()
+                    .buffer(b.raw)
+                    .range(vk::WHOLE_SIZE)]
+            })
+            .collect();
+        let writes: Vec<vk::WriteDescriptorSet> = infos
+            .iter()
+            .enumerate()
+            .map(|(i, info)| {
+                vk::WriteDescriptorSet::default()
+                    .dst_set(set)
+                    .dst_binding(i as u32)
+                    .descriptor_type(BINDINGS[i])
+                    .buffer_info(info)
+            })
+            .collect();
+        // SAFETY: every write names a live buffer of the right usage.
+        unsafe { shared.device.update_descriptor_sets(&writes, &[]) };
+        let command = self.command_buffer(pools)?;
+        let fence = self.fence(pools)?;
+        Ok(Slot {
+            tile,
+            output,
+            readback,
+            command,
+            fence,
+            set,
+        })
+    }
+
+    fn submit_tile(&self, slot: &mut Slot, rect: TileRect) -> Result<(), GpuError> {
+        let shared = &self.ctx.shared;
+        let device = &shared.device;
+        slot.tile.write(bytemuck::bytes_of(&GpuTile {
+            origin: rect.origin,
+            size: rect.size,
+        }));
+        let bytes = u64::from(rect.size[0]) * u64::from(rect.size[1]) * TEXEL_BYTES;
+        // SAFETY: the slot's previous submission was waited for (finish_tile)
+        // before this reuse; all handles are live.
+        unsafe {
+            device.reset_fences(&[slot.fence]).call("vkResetFences")?;
+            device
+                .reset_command_buffer(slot.command, vk::CommandBufferResetFlags::empty())
+                .call("vkResetCommandBuffer")?;
+            device
+                .begin_command_buffer(
+                    slot.command,
+                    &vk::CommandBufferBeginInfo::default()
+                        .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
+                )
+                .call("vkBeginCommandBuffer")?;
+            device.cmd_bind_pipeline(
+                slot.command,
+                vk::PipelineBindPoint::COMPUTE,
+                self.pipeline.pipeline,
+            );
+            device.cmd_bind_descriptor_sets(
+                slot.command,
+                vk::PipelineBindPoint::COMPUTE,
+                self.pipeline.layout,
+                0,
+                &[slot.set],
+                &[],
+            );
+            device.cmd_dispatch(
+                slot.command,
+                rect.size[0].div_ceil(WORKGROUP_SIZE),
+                rect.size[1].div_ceil(WORKGROUP_SIZE),
+                1,
+            );
+            let to_copy = vk::MemoryBarrier::default()
+                .src_access_mask(vk::AccessFlags::SHADER_WRITE)
+                .dst_access_mask(vk::AccessFlags::TRANSFER_READ);
+            device.cmd_pipeline_barrier(
+                slot.command,
+                vk::PipelineStageFlags::COMPUTE_SHADER,
+                vk::PipelineStageFlags::TRANSFER,
+                vk::DependencyFlags::empty(),
+                &[to_copy],
+                &[],
+                &[],
+            );
+            device.cmd_copy_buffer(
+                slot.command,
+                slot.output.raw,
+                slot.readback.raw,
+                &[vk::BufferCopy {
+                    src_offset: 0,
+                    dst_offset: 0,
+                    size: bytes,
+                }],
+            );
+            let to_host = vk::MemoryBarrier::default()
+                .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+                .dst_access_mask(vk::AccessFlags::HOST_READ);
+            device.cmd_pipeline_barrier(
+                slot.command,
+                vk::PipelineStageFlags::TRANSFER,
+                vk::PipelineStageFlags::HOST,
+                vk::DependencyFlags::empty(),
+                &[to_host],
+                &[],
+                &[],
+            );
+            device
+                .end_command_buffer(slot.command)
+                .call("vkEndCommandBuffer")?;
+            let cmds = [slot.command];
+            let submit = vk::SubmitInfo::default().command_buffers(&cmds);
+            device
+                .queue_submit(shared.queue, &[submit], slot.fence)
+                .map_err(|r| self.fail(r, rect, "vkQueueSubmit", 0))?;
+        }
+        Ok(())
+    }
+
+    /// Waits for a tile and copies it into `fb`; returns the copy time.
+    fn finish_tile(
+        &self,
+        slot: &Slot,
+        rect: TileRect,
+        fb: &mut Framebuffer,
+        options: &GpuRenderOptions,
+    ) -> Result<Duration, GpuError> {
+        let timeout = options.tile_timeout.as_nanos().min(u128::from(u64::MAX)) as u64;
+        // SAFETY: the fence belongs to this device and was submitted.
+        unsafe {
+            self.ctx
+                .shared
+                .device
+                .wait_for_fences(&[slot.fence], true, timeout)
+        }
+        .map_err(|r| self.fail(r, rect, "vkWaitForFences", options.tile_timeout.as_secs()))?;
+        let start = Instant::now();
+        let texels: &[[f32; 4]] = bytemuck::cast_slice(slot.readback.mapped());
+        let [x0, y0] = rect.origin;
+        let [w, h] = rect.size;
+        for row in 0..h {
+            let src = &texels[(row * w) as usize..((row + 1) * w) as usize];
+            let start_px = ((y0 + row) * fb.width + x0) as usize;
+            for (dst, s) in fb.pixels[start_px..start_px + w as usize]
+                .iter_mut()
+                .zip(src)
+            {
+                *dst = [s[0], s[1], s[2]];
+            }
+        }
+        Ok(start.elapsed())
+    }
+
+    fn fail(
+        &self,
+        result: vk::Result,
+        rect: TileRect,
+        call: &'static str,
+        seconds: u64,
+    ) -> GpuError {
+        let [x, y] = rect.origin;
+        match result {
+            vk::Result::TIMEOUT => {
+                self.ctx.shared.poison();
+                GpuError::Timeout { x, y, seconds }
+            }
+            vk::Result::ERROR_DEVICE_LOST => {
+                self.ctx.shared.poison();
+                GpuError::DeviceLost { x, y }
+            }
+            result => GpuError::Vk { call, result },
+        }
+    }
+}
+
+fn tiles(width: u32, height: u32, edge: u32) -> Vec<TileRect> {
+    let mut out = Vec::new();
+    for y in (0..height).step_by(edge as usize) {
+        for x in (0..width).step_by(edge as usize) {
+            out.push(TileRect {
+                origin: [x, y],
+                size: [edge.min(width - x), edge.min(height - y)],
+            });
+        }
+    }
+    out
+}

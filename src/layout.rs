@@ -1,0 +1,198 @@
+//! Every GPU-visible struct, defined once here (`#[repr(C)]`, `bytemuck`), and
+//! the packing of a `Scene` + `Bvh` into those buffers.
+//!
+//! `shaders/trace.wgsl` declares the same structs by hand (WGSL has no
+//! include); `tests/layout.rs` reads the shader's member offsets, struct sizes
+//! and shared constants from naga and compares them with these, so the two
+//! cannot drift apart silently. Fields are grouped as `vec3 + scalar` so WGSL's
+//! 16-byte `vec3` alignment leaves no hidden padding.
+
+use bytemuck::{Pod, Zeroable};
+
+use crate::bvh::Bvh;
+use crate::camera::Camera;
+use crate::scene::Scene;
+
+/// Bit 31 of a primitive reference marks a sphere; the rest is the index.
+pub const SPHERE_BIT: u32 = 0x8000_0000;
+/// Deepest BVH the builder makes, and so the traversal stack size.
+pub const BVH_MAX_DEPTH: u32 = 64;
+/// Compute workgroup edge: workgroups are `WORKGROUP_SIZE x WORKGROUP_SIZE`.
+pub const WORKGROUP_SIZE: u32 = 8;
+
+/// Per-image constants (uniform, binding 0).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuFrame {
+    pub background: [f32; 4],
+    pub ambient: [f32; 4],
+    /// `Camera::half_extent` in f32.
+    pub half_extent: [f32; 2],
+    /// Image width and height in pixels.
+    pub size: [u32; 2],
+    pub node_count: u32,
+    pub light_count: u32,
+    pub _pad: [u32; 2],
+}
+
+/// Per-dispatch constants (uniform, binding 1): the tile this dispatch renders.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuTile {
+    /// Pixel coordinates of the tile's top-left corner.
+    pub origin: [u32; 2],
+    /// Tile width and height (edge tiles are smaller).
+    pub size: [u32; 2],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuSphere {
+    pub center: [f32; 3],
+    pub radius: f32,
+    pub kd: [f32; 3],
+    pub shininess: f32,
+    pub ks: [f32; 3],
+    pub _pad: f32,
+}
+
+/// Triangle positions only: what intersection reads. Shading attributes live
+/// in `GpuVertexShading`, read once per shaded hit, which keeps the hot data
+/// small (48 bytes a triangle).
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuTriangle {
+    /// xyz = vertex position, w unused.
+    pub v: [[f32; 4]; 3],
+}
+
+/// One triangle corner's shading attributes; three per triangle, in order.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuVertexShading {
+    pub normal: [f32; 3],
+    pub shininess: f32,
+    pub kd: [f32; 3],
+    pub _pad0: f32,
+    pub ks: [f32; 3],
+    pub _pad1: f32,
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuLight {
+    /// xyz = position, w unused.
+    pub position: [f32; 4],
+    /// rgb = colour, a unused.
+    pub color: [f32; 4],
+}
+
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuBvhNode {
+    pub min: [f32; 3],
+    /// Interior: index of the right child (the left one is the next node).
+    /// Leaf: index of the first primitive reference.
+    pub right_or_first: u32,
+    pub max: [f32; 3],
+    /// Primitive count of a leaf; 0 marks an interior node.
+    pub count: u32,
+}
+
+/// A scene packed into the buffers the shader reads, in f32.
+///
+/// Vulkan forbids zero-sized buffers, so `padded` gives each list at least one
+/// (zeroed) element; counts that matter travel in `GpuFrame` and the BVH.
+#[derive(Clone, Debug, Default)]
+pub struct GpuScene {
+    pub spheres: Vec<GpuSphere>,
+    pub triangles: Vec<GpuTriangle>,
+    pub shading: Vec<GpuVertexShading>,
+    pub lights: Vec<GpuLight>,
+    pub nodes: Vec<GpuBvhNode>,
+    pub prim_refs: Vec<u32>,
+    pub ambient: [f32; 3],
+}
+
+fn f3(v: glam::DVec3) -> [f32; 3] {
+    v.as_vec3().to_array()
+}
+
+fn f4(v: glam::DVec3) -> [f32; 4] {
+    v.as_vec3().extend(0.0).to_array()
+}
+
+impl GpuScene {
+    pub fn pack(scene: &Scene, bvh: &Bvh) -> GpuScene {
+        let spheres = scene
+            .spheres
+            .iter()
+            .map(|s| GpuSphere {
+                center: f3(s.center),
+                radius: s.radius as f32,
+                kd: f3(s.material.kd),
+                shininess: s.material.shininess as f32,
+                ks: f3(s.material.ks),
+                _pad: 0.0,
+            })
+            .collect();
+        let triangles = scene
+            .triangles
+            .iter()
+            .map(|t| GpuTriangle {
+                v: t.vertices.map(|v| f4(v.position)),
+            })
+            .collect();
+        let shading = scene
+            .triangles
+            .iter()
+            .flat_map(|t| t.vertices)
+            .map(|v| GpuVertexShading {
+                normal: f3(v.normal),
+                shininess: v.material.shininess as f32,
+                kd: f3(v.material.kd),
+                _pad0: 0.0,
+                ks: f3(v.material.ks),
+                _pad1: 0.0,
+            })
+            .collect();
+        let lights = scene
+            .lights
+            .iter()
+            .map(|l| GpuLight {
+                position: f4(l.position),
+                color: f4(l.color),
+            })
+            .collect();
+        GpuScene {
+            spheres,
+            triangles,
+            shading,
+            lights,
+            nodes: bvh.nodes.clone(),
+            prim_refs: bvh.prim_refs.clone(),
+            ambient: f3(scene.ambient),
+        }
+    }
+
+    pub fn frame(&self, camera: &Camera, background: [f32; 3]) -> GpuFrame {
+        GpuFrame {
+            background: [background[0], background[1], background[2], 1.0],
+            ambient: [self.ambient[0], self.ambient[1], self.ambient[2], 0.0],
+            half_extent: camera.half_extent_f32(),
+            size: [camera.width, camera.height],
+            node_count: self.nodes.len() as u32,
+            light_count: self.lights.len() as u32,
+            _pad: [0; 2],
+        }
+    }
+}
+
+/// `items` as bytes, or one zeroed element's bytes when empty.
+pub fn padded<T: Pod + Default>(items: &[T]) -> std::borrow::Cow<'_, [u8]> {
+    if items.is_empty() {
+        std::borrow::Cow::Owned(bytemuck::bytes_of(&T::default()).to_vec())
+    } else {
+        std::borrow::Cow::Borrowed(bytemuck::cast_slice(items))
+    }
+}

@@ -1,0 +1,25 @@
+//! glint: a ray tracer for the classic CSCI 420 scene format whose hot path is
+//! a Vulkan compute shader (WGSL compiled by naga, driven with ash), with a CPU
+//! reference renderer of the same algorithm for shader-vs-CPU comparison.
+//!
+//! ```text
+//! scene::read_scene -> Scene --bvh::Bvh::build--> Bvh
+//!   GPU: layout::GpuScene::pack -> gpu::GpuRenderer::render -> Framebuffer
+//!   CPU: cpu::render (f32 twin of the shader, or f64 ground truth) -> Framebuffer
+//! framebuffer::write_image; compare::compare_images
+//! ```
+
+pub mod bvh;
+pub mod camera;
+pub mod compare;
+pub mod cpu;
+mod error;
+pub mod framebuffer;
+pub mod gpu;
+pub mod info;
+pub mod layout;
+pub mod render;
+pub mod scene;
+pub mod timing;
+
+pub use error::Error;

@@ -1,0 +1,394 @@
+//! Parser for the classic CSCI 420 scene format, exactly as the course's files
+//! are written:
+//!
+//! ```text
+//! <object count>
+//! amb: r g b
+//! sphere   pos: x y z  rad: r  dif: r g b  spe: r g b  shi: s
+//! triangle (pos: x y z  nor: x y z  dif: r g b  spe: r g b  shi: s) x 3
+//! light    pos: x y z  col: r g b
+//! ```
+//!
+//! Tokens are separated by any whitespace; tags and keywords are
+//! case-insensitive; numbers are anything Rust's `f64` parser accepts that is
+//! finite (`1`, `.44`, `1e-16`). The object count counts spheres, triangles
+//! and lights together and must match the blocks. The parser works on bytes,
+//! never allocates by the declared count, and never panics: every failure is
+//! a [`ParseError`] with file:line:col, the token found and what was expected.
+
+use std::fmt;
+use std::path::Path;
+
+use glam::DVec3;
+
+use super::{Light, Material, Scene, Sphere, Triangle, Vertex};
+use crate::Error;
+
+/// A message tied to a place in a scene file, shown with the source line and
+/// a caret under the offending token.
+#[derive(Clone, Debug, PartialEq, Eq)]
+pub struct Diagnostic {
+    pub path: String,
+    /// 1-based line number.
+    pub line: usize,
+    /// 1-based column, in bytes.
+    pub col: usize,
+    pub message: String,
+    /// What to do about it, when there is something useful to say.
+    pub hint: Option<String>,
+    source_line: String,
+    width: usize,
+}
+
+impl fmt::Display for Diagnostic {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "{}:{}:{}: {}",
+            self.path, self.line, self.col, self.message
+        )?;
+        let gutter = self.line.to_string().len();
+        writeln!(f, "{:gutter$} |", "")?;
+        writeln!(f, "{} | {}", self.line, self.source_line)?;
+        write!(
+            f,
+            "{:gutter$} | {}{}",
+            "",
+            " ".repeat(self.col.saturating_sub(1)),
+            "^".repeat(self.width.max(1))
+        )?;
+        if let Some(hint) = &self.hint {
+            write!(f, "\n{:gutter$} = help: {hint}", "")?;
+        }
+        Ok(())
+    }
+}
+
+/// The scene file is not valid classic-format input.
+#[derive(Clone, Debug, PartialEq, Eq, thiserror::Error)]
+#[error("{0}")]
+pub struct ParseError(pub Box<Diagnostic>);
+
+impl ParseError {
+    pub fn diagnostic(&self) -> &Diagnostic {
+        &self.0
+    }
+}
+
+/// Reads and parses a scene file; `path` is also used in messages.
+pub fn read_scene(path: &Path) -> Result<Scene, Error> {
+    let bytes = std::fs::read(path).map_err(|source| Error::ReadScene {
+        path: path.to_path_buf(),
+        source,
+    })?;
+    Ok(parse_scene(&bytes, &path.display().to_string())?)
+}
+
+/// Parses classic-format scene text; `path` is only used in messages.
+pub fn parse_scene(src: &[u8], path: &str) -> Result<Scene, ParseError> {
+    Parser {
+        src,
+        path,
+        pos: 0,
+        line: 1,
+        line_start: 0,
+        scene: Scene::default(),
+    }
+    .parse()
+}
+
+#[derive(Clone, Copy)]
+struct Token<'a> {
+    text: &'a [u8],
+    offset: usize,
+    line: usize,
+    col: usize,
+}
+
+impl Token<'_> {
+    fn show(&self) -> String {
+        format!("`{}`", String::from_utf8_lossy(self.text).escape_debug())
+    }
+
+    fn is(&self, word: &str) -> bool {
+        self.text.eq_ignore_ascii_case(word.as_bytes())
+    }
+}
+
+struct Parser<'a> {
+    src: &'a [u8],
+    path: &'a str,
+    pos: usize,
+    line: usize,
+    line_start: usize,
+    scene: Scene,
+}
+
+type PResult<T> = Result<T, ParseError>;
+
+impl<'a> Parser<'a> {
+    fn parse(mut self) -> PResult<Scene> {
+        let declared = self.object_count()?;
+        self.tag("amb:")?;
+        self.scene.ambient = self.vec3("the ambient colour")?;
+        let mut found: u64 = 0;
+        while let Some(tok) = self.next_token() {
+            found += 1;
+            if found > declared {
+                return Err(self.error_at(
+                    &tok,
+                    format!(
+                        "the file declares {declared} object(s) on its first line, \
+                         but object {found} starts here"
+                    ),
+                    Some("make the count on the first line match the number of sphere, triangle and light blocks"),
+                ));
+            }
+            if tok.is("sphere") {
+                let sphere = self.sphere()?;
+                self.scene.spheres.push(sphere);
+            } else if tok.is("triangle") {
+                let triangle = self.triangle()?;
+                self.scene.triangles.push(triangle);
+            } else if tok.is("light") {
+                let light = self.light()?;
+                self.scene.lights.push(light);
+            } else {
+                return Err(self.expected(&tok, "`sphere`, `triangle` or `light`"));
+            }
+        }
+        if found < declared {
+            let end = self.end_token();
+            return Err(self.error_at(
+                &end,
+                format!(
+                    "the file declares {declared} object(s) on its first line, \
+                     but ends after {found}"
+                ),
+                Some("the file may be truncated; otherwise fix the count on the first line"),
+            ));
+        }
+        Ok(self.scene)
+    }
+
+    fn object_count(&mut self) -> PResult<u64> {
+        let tok = self.require("the object count")?;
+        std::str::from_utf8(tok.text)
+            .ok()
+            .and_then(|s| s.parse::<u64>().ok())
+            .ok_or_else(|| {
+                self.expected(&tok, "the object count (a whole number) as the first token")
+            })
+    }
+
+    fn sphere(&mut self) -> PResult<Sphere> {
+        self.tag("pos:")?;
+        let center = self.vec3("the sphere centre")?;
+        self.tag("rad:")?;
+        let (radius, tok) = self.number("the sphere radius")?;
+        if radius <= 0.0 {
+            return Err(self.error_at(
+                &tok,
+                format!("sphere radius must be positive, found {}", tok.show()),
+                None,
+            ));
+        }
+        let material = self.material()?;
+        Ok(Sphere {
+            center,
+            radius,
+            material,
+        })
+    }
+
+    fn triangle(&mut self) -> PResult<Triangle> {
+        let mut vertices = [Vertex {
+            position: DVec3::ZERO,
+            normal: DVec3::ZERO,
+            material: Material {
+                kd: DVec3::ZERO,
+                ks: DVec3::ZERO,
+                shininess: 0.0,
+            },
+        }; 3];
+        for v in &mut vertices {
+            self.tag("pos:")?;
+            v.position = self.vec3("the vertex position")?;
+            let nor = self.tag("nor:")?;
+            v.normal = self.vec3("the vertex normal")?;
+            if v.normal == DVec3::ZERO {
+                let d = self.diagnostic(
+                    &nor,
+                    "zero-length vertex normal: it adds nothing to the interpolated normal"
+                        .to_string(),
+                    Some("where all three are zero the flat (geometric) normal is used"),
+                );
+                self.scene.warnings.push(d);
+            }
+            v.material = self.material()?;
+        }
+        Ok(Triangle { vertices })
+    }
+
+    fn light(&mut self) -> PResult<Light> {
+        self.tag("pos:")?;
+        let position = self.vec3("the light position")?;
+        self.tag("col:")?;
+        let color = self.vec3("the light colour")?;
+        Ok(Light { position, color })
+    }
+
+    fn material(&mut self) -> PResult<Material> {
+        self.tag("dif:")?;
+        let kd = self.vec3("the diffuse colour")?;
+        self.tag("spe:")?;
+        let ks = self.vec3("the specular colour")?;
+        self.tag("shi:")?;
+        let (shininess, tok) = self.number("the shininess")?;
+        if shininess < 0.0 {
+            return Err(self.error_at(
+                &tok,
+                format!("shininess must be zero or more, found {}", tok.show()),
+                None,
+            ));
+        }
+        Ok(Material { kd, ks, shininess })
+    }
+
+    fn tag(&mut self, tag: &str) -> PResult<Token<'a>> {
+        let tok = self.require(&format!("`{tag}`"))?;
+        if tok.is(tag) {
+            Ok(tok)
+        } else {
+            Err(self.expected(&tok, &format!("`{tag}`")))
+        }
+    }
+
+    fn vec3(&mut self, what: &str) -> PResult<DVec3> {
+        let (x, _) = self.number(what)?;
+        let (y, _) = self.number(what)?;
+        let (z, _) = self.number(what)?;
+        Ok(DVec3::new(x, y, z))
+    }
+
+    fn number(&mut self, what: &str) -> PResult<(f64, Token<'a>)> {
+        let tok = self.require(&format!("a number ({what})"))?;
+        let value = std::str::from_utf8(tok.text)
+            .ok()
+            .and_then(|s| s.parse::<f64>().ok());
+        match value {
+            Some(v) if v.is_finite() => Ok((v, tok)),
+            Some(_) => Err(self.expected(&tok, &format!("a finite number ({what})"))),
+            None => Err(self.expected(&tok, &format!("a number ({what})"))),
+        }
+    }
+
+    /// The next token, or an "unexpected end of file" error naming `what`.
+    fn require(&mut self, what: &str) -> PResult<Token<'a>> {
+        match self.next_token() {
+            Some(tok) => Ok(tok),
+            None => {
+                let end = self.end_token();
+                Err(self.error_at(
+                    &end,
+                    format!("expected {what}, found end of file"),
+                    Some("the file looks truncated"),
+                ))
+            }
+        }
+    }
+
+    fn next_token(&mut self) -> Option<Token<'a>> {
+        while self.pos < self.src.len() && self.src[self.pos].is_ascii_whitespace() {
+            if self.src[self.pos] == b'\n' {
+                self.line += 1;
+                self.line_start = self.pos + 1;
+            }
+            self.pos += 1;
+        }
+        if self.pos >= self.src.len() {
+            return None;
+        }
+        let start = self.pos;
+        while self.pos < self.src.len() && !self.src[self.pos].is_ascii_whitespace() {
+            self.pos += 1;
+        }
+        Some(Token {
+            text: &self.src[start..self.pos],
+            offset: start,
+            line: self.line,
+            col: start - self.line_start + 1,
+        })
+    }
+
+    /// A zero-width token at the end of the input, for end-of-file errors.
+    fn end_token(&mut self) -> Token<'a> {
+        while self.next_token().is_some() {}
+        Token {
+            text: &[],
+            offset: self.src.len(),
+            line: self.line,
+            col: self.src.len() - self.line_start + 1,
+        }
+    }
+
+    fn expected(&self, tok: &Token<'_>, what: &str) -> ParseError {
+        self.error_at(tok, format!("expected {what}, found {}", tok.show()), None)
+    }
+
+    fn error_at(&self, tok: &Token<'_>, message: String, hint: Option<&str>) -> ParseError {
+        ParseError(Box::new(self.diagnostic(tok, message, hint)))
+    }
+
+    fn diagnostic(&self, tok: &Token<'_>, message: String, hint: Option<&str>) -> Diagnostic {
+        let line_start = self.src[..tok.offset]
+            .iter()
+            .rposition(|&b| b == b'\n')
+            .map_or(0, |i| i + 1);
+        let line_end = self.src[tok.offset..]
+            .iter()
+            .position(|&b| b == b'\n')
+            .map_or(self.src.len(), |i| tok.offset + i);
+        let source_line = String::from_utf8_lossy(&self.src[line_start..line_end])
+            .trim_end()
+            .to_string();
+        Diagnostic {
+            path: self.path.to_string(),
+            line: tok.line,
+            col: tok.col,
+            message,
+            hint: hint.map(str::to_string),
+            source_line,
+            width: tok.text.len(),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn accepts_course_number_forms_and_mixed_case_tags() {
+        let src = b"2\nAMB: .1 1 1e-16\nSphere pos: 0 0 -3 RAD: 1 dif: .44 0 0 spe: 0 0 0 shi: 1\nLIGHT pos: 0 0 0 col: 1 1 1\n";
+        let scene = parse_scene(src, "t").unwrap();
+        assert_eq!(scene.ambient, DVec3::new(0.1, 1.0, 1e-16));
+        assert_eq!(scene.spheres[0].material.kd.x, 0.44);
+        assert_eq!(scene.lights.len(), 1);
+    }
+
+    #[test]
+    fn caret_points_at_the_token() {
+        let err = parse_scene(
+            b"1\namb: 0 0 0\nsphere\npos: 0 0 -3\nradius: 1\n",
+            "s.scene",
+        )
+        .unwrap_err();
+        let text = err.to_string();
+        assert!(
+            text.starts_with("s.scene:5:1: expected `rad:`, found `radius:`"),
+            "{text}"
+        );
+        assert!(text.contains("5 | radius: 1\n  | ^^^^^^^"), "{text}");
+    }
+}

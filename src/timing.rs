@@ -1,0 +1,55 @@
+//! Wall-clock phases of a render (parse, BVH build, pipeline, upload,
+//! dispatch, readback), for `-v` and for benchmarks.
+
+use std::fmt;
+use std::time::{Duration, Instant};
+
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Timings {
+    pub phases: Vec<(&'static str, Duration)>,
+}
+
+impl Timings {
+    pub fn add(&mut self, name: &'static str, d: Duration) {
+        match self.phases.iter_mut().find(|(n, _)| *n == name) {
+            Some((_, total)) => *total += d,
+            None => self.phases.push((name, d)),
+        }
+    }
+
+    /// Runs `f`, adding its duration under `name`.
+    pub fn time<T>(&mut self, name: &'static str, f: impl FnOnce() -> T) -> T {
+        let start = Instant::now();
+        let out = f();
+        self.add(name, start.elapsed());
+        out
+    }
+
+    pub fn get(&self, name: &str) -> Option<Duration> {
+        self.phases.iter().find(|(n, _)| *n == name).map(|p| p.1)
+    }
+
+    pub fn total(&self) -> Duration {
+        self.phases.iter().map(|p| p.1).sum()
+    }
+
+    pub fn extend(&mut self, other: &Timings) {
+        for &(name, d) in &other.phases {
+            self.add(name, d);
+        }
+    }
+}
+
+impl fmt::Display for Timings {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        for (name, d) in &self.phases {
+            writeln!(f, "  {name:<10} {:>10.3} ms", d.as_secs_f64() * 1e3)?;
+        }
+        write!(
+            f,
+            "  {:<10} {:>10.3} ms",
+            "total",
+            self.total().as_secs_f64() * 1e3
+        )
+    }
+}
