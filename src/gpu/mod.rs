@@ -15,4 +15,5 @@ mod render;
 
 pub use context::{list_devices, Context, ContextOptions, DeviceInfo, DeviceSelector};
 pub use error::GpuError;
+pub use pipeline::BINDINGS;
 pub use render::{GpuRenderOptions, GpuRenderer};

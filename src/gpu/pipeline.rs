@@ -13,7 +13,7 @@ const TRACE_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/trace.spv")
 const ENTRY_POINT: &std::ffi::CStr = c"render_tile";
 
 /// Descriptor types of bindings 0.. of group 0, in the shader's order.
-pub(crate) const BINDINGS: [vk::DescriptorType; 9] = [
+pub const BINDINGS: [vk::DescriptorType; 9] = [
     vk::DescriptorType::UNIFORM_BUFFER, // frame
     vk::DescriptorType::UNIFORM_BUFFER, // tile
     vk::DescriptorType::STORAGE_BUFFER, // spheres

@@ -31,7 +31,7 @@ pub struct Diagnostic {
     pub path: String,
     /// 1-based line number.
     pub line: usize,
-    /// 1-based column, in bytes.
+    /// 1-based column, in characters.
     pub col: usize,
     pub message: String,
     /// What to do about it, when there is something useful to say.
@@ -102,7 +102,9 @@ struct Token<'a> {
     text: &'a [u8],
     offset: usize,
     line: usize,
-    col: usize,
+    /// Byte offset of the token's line; the column is worked out only when a
+    /// diagnostic needs it, so long lines cost nothing while parsing.
+    line_start: usize,
 }
 
 impl Token<'_> {
@@ -317,7 +319,7 @@ impl<'a> Parser<'a> {
             text: &self.src[start..self.pos],
             offset: start,
             line: self.line,
-            col: start - self.line_start + 1,
+            line_start: self.line_start,
         })
     }
 
@@ -328,7 +330,7 @@ impl<'a> Parser<'a> {
             text: &[],
             offset: self.src.len(),
             line: self.line,
-            col: self.src.len() - self.line_start + 1,
+            line_start: self.line_start,
         }
     }
 
@@ -341,25 +343,24 @@ impl<'a> Parser<'a> {
     }
 
     fn diagnostic(&self, tok: &Token<'_>, message: String, hint: Option<&str>) -> Diagnostic {
-        let line_start = self.src[..tok.offset]
-            .iter()
-            .rposition(|&b| b == b'\n')
-            .map_or(0, |i| i + 1);
+        let line_start = tok.line_start;
+        let chars = |bytes: &[u8]| String::from_utf8_lossy(bytes).chars().count();
         let line_end = self.src[tok.offset..]
             .iter()
             .position(|&b| b == b'\n')
             .map_or(self.src.len(), |i| tok.offset + i);
+        // Tabs shown as one space keep the caret under the token.
         let source_line = String::from_utf8_lossy(&self.src[line_start..line_end])
             .trim_end()
-            .to_string();
+            .replace('\t', " ");
         Diagnostic {
             path: self.path.to_string(),
             line: tok.line,
-            col: tok.col,
+            col: chars(&self.src[line_start..tok.offset]) + 1,
             message,
             hint: hint.map(str::to_string),
             source_line,
-            width: tok.text.len(),
+            width: chars(tok.text),
         }
     }
 }

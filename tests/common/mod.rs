@@ -1,0 +1,175 @@
+//! Helpers shared by the integration tests: scene lookup, one GPU renderer per
+//! test binary, rendering on each backend, and failure artefacts.
+#![allow(dead_code)] // each test binary uses a different subset
+
+use std::path::{Path, PathBuf};
+use std::sync::{Mutex, OnceLock};
+
+use glint::bvh::Bvh;
+use glint::camera::Camera;
+use glint::compare::Comparison;
+use glint::cpu::Precision;
+use glint::framebuffer::{write_image, Framebuffer};
+use glint::gpu::{Context, ContextOptions, GpuRenderOptions, GpuRenderer};
+use glint::layout::GpuScene;
+use glint::scene::{parse_scene, Scene};
+
+pub const CLASSIC: [&str; 5] = ["test1", "test2", "spheres", "table", "SIGGRAPH"];
+
+pub fn in_ci() -> bool {
+    std::env::var_os("CI").is_some_and(|v| !v.is_empty() && v != "false")
+}
+
+pub fn repo_path(rel: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join(rel)
+}
+
+/// `../shared/scenes/classic`, or `None` with a visible message when absent
+/// (a user's clone has none). In CI its absence is a failure.
+pub fn classic_dir() -> Option<PathBuf> {
+    let dir = repo_path("../shared/scenes/classic");
+    if dir.is_dir() {
+        return Some(dir);
+    }
+    assert!(
+        !in_ci(),
+        "CI is set but the classic scenes are missing at {}",
+        dir.display()
+    );
+    eprintln!(
+        "SKIPPED: classic scenes not found at {} (they live outside this repository)",
+        dir.display()
+    );
+    None
+}
+
+pub fn classic_scene(name: &str) -> Option<Scene> {
+    let path = classic_dir()?.join(format!("{name}.scene"));
+    Some(glint::scene::read_scene(&path).expect("classic scene parses"))
+}
+
+/// Every `*.scene` under the project's `scenes/` (recursively), sorted.
+pub fn own_scenes() -> Vec<PathBuf> {
+    fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
+        for entry in std::fs::read_dir(dir).into_iter().flatten().flatten() {
+            let p = entry.path();
+            if p.is_dir() {
+                walk(&p, out);
+            } else if p.extension().is_some_and(|e| e == "scene") {
+                out.push(p);
+            }
+        }
+    }
+    let mut out = Vec::new();
+    walk(&repo_path("scenes"), &mut out);
+    out.sort();
+    out
+}
+
+pub fn scene_from(text: &str) -> Scene {
+    parse_scene(text.as_bytes(), "<test>").expect("test scene parses")
+}
+
+pub struct Gpu {
+    pub ctx: Context,
+    pub renderer: GpuRenderer,
+}
+
+/// One GPU renderer per test binary, serialised (a Vulkan queue may not be
+/// used from two threads at once). `None` (with a message) when there is no
+/// Vulkan device, which fails the test in CI. The validation layer is on
+/// whenever it is installed, and required in CI.
+pub fn gpu() -> Option<&'static Mutex<Gpu>> {
+    static GPU: OnceLock<Option<Mutex<Gpu>>> = OnceLock::new();
+    GPU.get_or_init(|| {
+        let options = ContextOptions {
+            device: None,
+            validation: true,
+        };
+        match Context::new(&options) {
+            Ok(ctx) => {
+                assert!(
+                    ctx.validation_active() || !in_ci(),
+                    "CI is set but VK_LAYER_KHRONOS_validation is not installed"
+                );
+                eprintln!(
+                    "GPU tests on: {} ({}), validation {}",
+                    ctx.info().name,
+                    ctx.info().driver,
+                    if ctx.validation_active() {
+                        "on"
+                    } else {
+                        "off (layer not installed)"
+                    }
+                );
+                let renderer = GpuRenderer::new(&ctx).expect("trace pipeline builds");
+                Some(Mutex::new(Gpu { ctx, renderer }))
+            }
+            Err(e) => {
+                assert!(!in_ci(), "CI is set but no Vulkan device is usable: {e}");
+                eprintln!("SKIPPED: GPU part of this test: no Vulkan device ({e})");
+                None
+            }
+        }
+    })
+    .as_ref()
+}
+
+pub fn render_cpu(
+    scene: &Scene,
+    w: u32,
+    h: u32,
+    precision: Precision,
+    bg: [f32; 3],
+) -> Framebuffer {
+    let bvh = Bvh::build(scene);
+    glint::cpu::render(scene, &bvh, &Camera::new(w, h), bg, precision, &|_, _| {})
+}
+
+/// Renders on the GPU and asserts the validation layer stayed silent.
+pub fn render_gpu(scene: &Scene, w: u32, h: u32, bg: [f32; 3]) -> Option<Framebuffer> {
+    let gpu = gpu()?.lock().unwrap_or_else(|e| e.into_inner());
+    let before = gpu.ctx.validation_messages();
+    let packed = GpuScene::pack(scene, &Bvh::build(scene));
+    let options = GpuRenderOptions {
+        // Small tiles so that even small test images cross tile borders.
+        tile_size: 64,
+        ..Default::default()
+    };
+    let (fb, _) = gpu
+        .renderer
+        .render(&packed, &Camera::new(w, h), bg, &options, &|_, _| {})
+        .expect("GPU render succeeds");
+    let messages = gpu.ctx.validation_messages() - before;
+    assert_eq!(
+        messages, 0,
+        "Vulkan validation reported {messages} message(s) (printed above)"
+    );
+    Some(fb)
+}
+
+pub const WHITE: [f32; 3] = [1.0; 3];
+
+/// Writes `<name>-actual.png`, `-expected.png` and `-diff.png` under
+/// `target/test-artifacts/` and returns where.
+pub fn write_artifacts(
+    name: &str,
+    actual: &Framebuffer,
+    expected: &Framebuffer,
+    cmp: &Comparison,
+) -> PathBuf {
+    let dir = repo_path("target/test-artifacts");
+    std::fs::create_dir_all(&dir).expect("create target/test-artifacts");
+    let save = |suffix: &str, img: &image::RgbImage| {
+        write_image(img, &dir.join(format!("{name}-{suffix}.png")), 95).expect("write artefact");
+    };
+    save("actual", &actual.to_rgb8());
+    save("expected", &expected.to_rgb8());
+    save("diff", &cmp.diff_image());
+    dir
+}
+
+/// Pixels whose value is NaN or infinite on any channel.
+pub fn assert_finite(name: &str, fb: &Framebuffer) {
+    assert_eq!(fb.non_finite_count(), 0, "{name}: NaN/Inf pixels");
+}

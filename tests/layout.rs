@@ -1,0 +1,164 @@
+//! Host/shader layout agreement: every struct's member offsets and size, every
+//! storage array's stride, the bindings' kinds, and the constants both sides
+//! share, read from the shader by naga and compared with src/layout.rs.
+
+use std::mem::{offset_of, size_of};
+
+use ash::vk;
+use glint::cpu::Real;
+use glint::layout::*;
+use naga::{AddressSpace, Expression, Literal, Module, TypeInner};
+
+fn shader() -> Module {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/shaders/trace.wgsl");
+    let source = std::fs::read_to_string(path).expect("read shader");
+    naga::front::wgsl::parse_str(&source).expect("shader parses")
+}
+
+/// (member name, offset) pairs and the size of the shader struct `name`.
+fn shader_struct(module: &Module, name: &str) -> (Vec<(String, u32)>, u32) {
+    let ty = module
+        .types
+        .iter()
+        .find(|(_, t)| t.name.as_deref() == Some(name))
+        .unwrap_or_else(|| panic!("shader has no struct {name}"));
+    match &ty.1.inner {
+        TypeInner::Struct { members, span } => (
+            members
+                .iter()
+                .map(|m| (m.name.clone().unwrap_or_default(), m.offset))
+                .collect(),
+            *span,
+        ),
+        other => panic!("{name} is not a struct: {other:?}"),
+    }
+}
+
+macro_rules! check_struct {
+    ($module:expr, $wgsl:literal, $rust:ty, [$($field:ident),* $(,)?]) => {{
+        let (members, span) = shader_struct(&$module, $wgsl);
+        let rust: Vec<(String, u32)> =
+            vec![$((stringify!($field).to_string(), offset_of!($rust, $field) as u32)),*];
+        assert_eq!(members, rust, "member names/offsets of {} vs {}", $wgsl, stringify!($rust));
+        assert_eq!(span as usize, size_of::<$rust>(), "size of {} vs {}", $wgsl, stringify!($rust));
+    }};
+}
+
+#[test]
+fn structs_match() {
+    let m = shader();
+    check_struct!(
+        m,
+        "Frame",
+        GpuFrame,
+        [
+            background,
+            ambient,
+            half_extent,
+            size,
+            node_count,
+            light_count,
+            _pad
+        ]
+    );
+    check_struct!(m, "Tile", GpuTile, [origin, size]);
+    check_struct!(
+        m,
+        "Sphere",
+        GpuSphere,
+        [center, radius, kd, shininess, ks, _pad]
+    );
+    check_struct!(m, "Triangle", GpuTriangle, [v]);
+    check_struct!(
+        m,
+        "VertexShading",
+        GpuVertexShading,
+        [normal, shininess, kd, _pad0, ks, _pad1]
+    );
+    check_struct!(m, "Light", GpuLight, [position, color]);
+    check_struct!(m, "BvhNode", GpuBvhNode, [min, right_or_first, max, count]);
+}
+
+#[test]
+fn bindings_match_the_pipeline_and_array_strides_match_rust() {
+    let m = shader();
+    // Element sizes of the storage arrays, by binding.
+    let strides = [
+        (2, size_of::<GpuSphere>()),
+        (3, size_of::<GpuTriangle>()),
+        (4, size_of::<GpuVertexShading>()),
+        (5, size_of::<GpuLight>()),
+        (6, size_of::<GpuBvhNode>()),
+        (7, size_of::<u32>()),
+        (8, 16),
+    ];
+    let mut seen = Vec::new();
+    for (_, var) in m.global_variables.iter() {
+        let Some(binding) = &var.binding else {
+            continue;
+        };
+        assert_eq!(binding.group, 0);
+        let i = binding.binding as usize;
+        let expected = match var.space {
+            AddressSpace::Uniform => vk::DescriptorType::UNIFORM_BUFFER,
+            AddressSpace::Storage { .. } => vk::DescriptorType::STORAGE_BUFFER,
+            other => panic!("unexpected address space {other:?}"),
+        };
+        assert_eq!(glint::gpu::BINDINGS[i], expected, "binding {i}");
+        if let TypeInner::Array { stride, .. } = m.types[var.ty].inner {
+            let want = strides
+                .iter()
+                .find(|s| s.0 == i)
+                .expect("known array binding")
+                .1;
+            assert_eq!(stride as usize, want, "array stride of binding {i}");
+        }
+        seen.push(i);
+    }
+    seen.sort();
+    assert_eq!(seen, (0..glint::gpu::BINDINGS.len()).collect::<Vec<_>>());
+}
+
+fn constant(m: &Module, name: &str) -> Literal {
+    let (_, c) = m
+        .constants
+        .iter()
+        .find(|(_, c)| c.name.as_deref() == Some(name))
+        .unwrap_or_else(|| panic!("shader has no const {name}"));
+    match m.global_expressions[c.init] {
+        Expression::Literal(l) => l,
+        ref e => panic!("{name} is not a literal: {e:?}"),
+    }
+}
+
+fn f32_const(m: &Module, name: &str) -> f32 {
+    match constant(m, name) {
+        Literal::F32(v) => v,
+        Literal::AbstractFloat(v) => v as f32,
+        l => panic!("{name} is not a float: {l:?}"),
+    }
+}
+
+#[test]
+fn shared_constants_match() {
+    let m = shader();
+    assert_eq!(constant(&m, "SPHERE_BIT"), Literal::U32(SPHERE_BIT));
+    assert_eq!(constant(&m, "BVH_MAX_DEPTH"), Literal::U32(BVH_MAX_DEPTH));
+    assert_eq!(constant(&m, "WORKGROUP_SIZE"), Literal::U32(WORKGROUP_SIZE));
+    assert_eq!(
+        constant(&m, "NO_HIT"),
+        Literal::U32(glint::cpu::trace::NO_HIT)
+    );
+    // Compared as bits: the CPU f32 twin must use the shader's exact values.
+    let pairs = [
+        ("T_INF", <f32 as Real>::T_INF),
+        ("BOX_T_SCALE", <f32 as Real>::BOX_T_SCALE),
+        ("MIN_DIR", <f32 as Real>::MIN_DIR),
+        ("OFFSET_ORIGIN", <f32 as Real>::OFFSET_ORIGIN),
+        ("OFFSET_FLOAT_SCALE", <f32 as Real>::OFFSET_FLOAT_SCALE),
+        ("OFFSET_INT_SCALE", <f32 as Real>::OFFSET_INT_SCALE),
+    ];
+    for (name, rust) in pairs {
+        assert_eq!(f32_const(&m, name).to_bits(), rust.to_bits(), "{name}");
+    }
+}

@@ -1,0 +1,246 @@
+//! The classic-format parser: the course's files, a table of malformed inputs
+//! with their exact locations, and "never panics" on arbitrary bytes.
+
+mod common;
+
+use common::*;
+use glint::scene::parse_scene;
+use proptest::prelude::*;
+
+#[test]
+fn classic_scenes_parse_with_the_right_counts() {
+    // (name, spheres, triangles, lights): counted independently with `grep -ci "^sphere"` etc.
+    let expected = [
+        ("test1", 1, 0, 1),
+        ("test2", 1, 3, 1),
+        ("spheres", 5, 2, 1),
+        ("table", 0, 182, 2),
+        ("SIGGRAPH", 0, 1482, 3),
+    ];
+    for (name, s, t, l) in expected {
+        let Some(scene) = classic_scene(name) else {
+            return;
+        };
+        assert_eq!(
+            (
+                scene.spheres.len(),
+                scene.triangles.len(),
+                scene.lights.len()
+            ),
+            (s, t, l),
+            "{name}"
+        );
+        assert!(scene.warnings.is_empty(), "{name}: {:?}", scene.warnings);
+    }
+}
+
+#[test]
+fn classic_values_are_read_exactly() {
+    let Some(scene) = classic_scene("test2") else {
+        return;
+    };
+    assert_eq!(scene.ambient.x, 0.05);
+    // `dif: .44 .40 .16` -- a leading-dot number.
+    assert_eq!(scene.spheres[0].material.kd.x, 0.44);
+    // `nor: 0 0.9878    0.1556` -- runs of spaces.
+    assert_eq!(scene.triangles[1].vertices[0].normal.y, 0.9878);
+    assert_eq!(scene.triangles[2].vertices[2].material.ks.x, 0.5);
+}
+
+const SPHERE: &str = "sphere pos: 0 0 -3 rad: 1 dif: 1 1 1 spe: 1 1 1 shi: 1\n";
+const LIGHT: &str = "light pos: 0 0 0 col: 1 1 1\n";
+
+#[test]
+fn malformed_inputs_report_line_col_and_what_was_expected() {
+    let cases: Vec<(String, usize, usize, &str)> = vec![
+        (
+            "".into(),
+            1,
+            1,
+            "expected the object count, found end of file",
+        ),
+        (
+            "  two\n".into(),
+            1,
+            3,
+            "expected the object count (a whole number) as the first token, found `two`",
+        ),
+        ("-1\namb: 0 0 0\n".into(), 1, 1, "found `-1`"),
+        (
+            "99999999999999999999999\n".into(),
+            1,
+            1,
+            "expected the object count",
+        ),
+        (
+            "1\nambient: 0 0 0\n".into(),
+            2,
+            1,
+            "expected `amb:`, found `ambient:`",
+        ),
+        (
+            "1\namb: 0 0 nan\n".into(),
+            2,
+            10,
+            "expected a finite number (the ambient colour), found `nan`",
+        ),
+        ("1\namb: 0 inf 0\n".into(), 2, 8, "expected a finite number"),
+        (
+            "1\namb: 0 0 1e999\n".into(),
+            2,
+            10,
+            "expected a finite number",
+        ),
+        (
+            "1\namb: 0 0 0x1\n".into(),
+            2,
+            10,
+            "expected a number (the ambient colour), found `0x1`",
+        ),
+        (
+            "1\namb: 0 0 0\ncone\n".into(),
+            3,
+            1,
+            "expected `sphere`, `triangle` or `light`, found `cone`",
+        ),
+        (
+            "1\namb: 0 0 0\nsphere\npos: 0 0 -3\nradius: 1\n".into(),
+            5,
+            1,
+            "expected `rad:`, found `radius:`",
+        ),
+        (
+            "1\namb: 0 0 0\nsphere pos: 0 0 -3 rad: -1\n".into(),
+            3,
+            25,
+            "sphere radius must be positive, found `-1`",
+        ),
+        (
+            "1\namb: 0 0 0\nsphere pos: 0 0 -3 rad: 0\n".into(),
+            3,
+            25,
+            "sphere radius must be positive",
+        ),
+        (
+            "1\namb: 0 0 0\nsphere pos: 0 0 -3 rad: 1 dif: 1 1 1 spe: 1 1 1 shi: -2\n".into(),
+            3,
+            54,
+            "shininess must be zero or more",
+        ),
+        (
+            "1\namb: 0 0 0\nsphere\npos: 0 0".into(),
+            4,
+            9,
+            "expected a number (the sphere centre), found end of file",
+        ),
+        (
+            format!("1\namb: 0 0 0\n{LIGHT}{LIGHT}"),
+            4,
+            1,
+            "the file declares 1 object(s) on its first line, but object 2 starts here",
+        ),
+        (
+            format!("3\namb: 0 0 0\n{SPHERE}{LIGHT}"),
+            5,
+            1,
+            "the file declares 3 object(s) on its first line, but ends after 2",
+        ),
+        // A hostile count must not allocate: it simply disagrees with the blocks.
+        (
+            format!("1000000000000\namb: 0 0 0\n{LIGHT}"),
+            4,
+            1,
+            "declares 1000000000000 object(s)",
+        ),
+        (
+            "1\namb: 0 0 0\ntriangle pos: 0 0 0 nor: 0 0 1 dif: 0 0 0 spe: 0 0 0 shi: 1\n".into(),
+            4,
+            1,
+            "expected `pos:`, found end of file",
+        ),
+        ("\u{feff}1\n".into(), 1, 1, "expected the object count"),
+        (
+            "1\namb: 0 0 0\nsph\u{e9}re\n".into(),
+            3,
+            1,
+            "found `sph\u{e9}re`",
+        ),
+    ];
+    for (src, line, col, message) in cases {
+        let err = parse_scene(src.as_bytes(), "case.scene").expect_err(&src);
+        let d = err.diagnostic();
+        assert_eq!((d.line, d.col), (line, col), "for {src:?}: {err}");
+        assert!(
+            d.message.contains(message),
+            "for {src:?}:\n{err}\nwanted: {message}"
+        );
+        let shown = err.to_string();
+        assert!(
+            shown.starts_with(&format!("case.scene:{line}:{col}: ")),
+            "{shown}"
+        );
+        assert!(shown.contains('^'), "no caret in:\n{shown}");
+    }
+}
+
+#[test]
+fn zero_normals_warn_with_their_location() {
+    let src = "1\namb: 0 0 0\ntriangle\n\
+               pos: 0 0 -1 nor: 0 0 0 dif: 1 1 1 spe: 0 0 0 shi: 1\n\
+               pos: 1 0 -1 nor: 0 0 1 dif: 1 1 1 spe: 0 0 0 shi: 1\n\
+               pos: 0 1 -1 nor: 0 0 1 dif: 1 1 1 spe: 0 0 0 shi: 1\n";
+    let scene = parse_scene(src.as_bytes(), "w.scene").expect("renderable");
+    assert_eq!(scene.warnings.len(), 1);
+    assert_eq!((scene.warnings[0].line, scene.warnings[0].col), (4, 13));
+    assert!(scene.warnings[0]
+        .message
+        .contains("zero-length vertex normal"));
+}
+
+#[test]
+fn every_prefix_of_a_classic_file_parses_or_errors_cleanly() {
+    let Some(dir) = classic_dir() else {
+        return;
+    };
+    let bytes = std::fs::read(dir.join("test2.scene")).expect("read test2");
+    let mut ok = 0;
+    for end in 0..=bytes.len() {
+        match parse_scene(&bytes[..end], "prefix") {
+            Ok(_) => ok += 1,
+            Err(e) => assert!(e.diagnostic().line >= 1 && e.diagnostic().col >= 1),
+        }
+    }
+    // Only the whole file (and the whole file minus trailing whitespace or a
+    // final number's later digits, which still parse) is a complete scene.
+    assert!((1..5).contains(&ok), "{ok} prefixes parsed");
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig { cases: 2000, ..ProptestConfig::default() })]
+
+    #[test]
+    fn arbitrary_bytes_never_panic(bytes in proptest::collection::vec(any::<u8>(), 0..512)) {
+        let _ = parse_scene(&bytes, "fuzz");
+    }
+
+    #[test]
+    fn token_soup_never_panics(tokens in proptest::collection::vec(
+        prop_oneof![
+            Just("1".to_string()), Just("3".to_string()), Just("amb:".to_string()),
+            Just("sphere".to_string()), Just("triangle".to_string()), Just("light".to_string()),
+            Just("pos:".to_string()), Just("nor:".to_string()), Just("rad:".to_string()),
+            Just("dif:".to_string()), Just("spe:".to_string()), Just("shi:".to_string()),
+            Just("col:".to_string()), Just("NaN".to_string()), Just("-0".to_string()),
+            Just("1e-16".to_string()), Just(".44".to_string()), Just("\n".to_string()),
+            any::<f64>().prop_map(|f| f.to_string()),
+        ],
+        0..80,
+    )) {
+        let text = tokens.join(" ");
+        if let Ok(scene) = parse_scene(text.as_bytes(), "soup") {
+            // Whatever parses must hold only finite numbers and positive radii.
+            prop_assert!(scene.spheres.iter().all(|s| s.radius > 0.0 && s.center.is_finite()));
+            prop_assert!(scene.ambient.is_finite());
+        }
+    }
+}
