@@ -1,5 +1,6 @@
 //! Argument definitions (clap) and dispatch to one module per subcommand.
 
+mod bench;
 mod compare;
 mod devices;
 mod info;
@@ -27,6 +28,8 @@ enum Command {
     Render(render::RenderArgs),
     /// Compare two images: max/mean abs diff, pixels over a threshold, PSNR, FLIP.
     Compare(compare::CompareArgs),
+    /// Time renders per scene and backend (medians).
+    Bench(bench::BenchArgs),
     /// List the Vulkan devices found.
     Devices,
     /// Show what a scene holds and what it calls for.
@@ -53,6 +56,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
         Command::Render(args) => render::run(args),
         Command::Compare(args) => compare::run(args),
+        Command::Bench(args) => bench::run(args),
         Command::Devices => devices::run(),
         Command::Info { scene } => info::run(&scene),
     }

@@ -188,7 +188,17 @@ fn create_instance(validation: bool) -> Result<Instance, GpuError> {
         .enabled_extension_names(&ext_names)
         .enabled_layer_names(&layer_names);
     // SAFETY: every pointer in `info` outlives the call.
-    let instance = unsafe { entry.create_instance(&info, None) }.call("vkCreateInstance")?;
+    let instance = match unsafe { entry.create_instance(&info, None) } {
+        Ok(i) => i,
+        // The loader's answer when it finds no driver at all.
+        Err(vk::Result::ERROR_INCOMPATIBLE_DRIVER) => return Err(GpuError::NoDevice),
+        Err(result) => {
+            return Err(GpuError::Vk {
+                call: "vkCreateInstance",
+                result,
+            })
+        }
+    };
     let debug = if debug_utils {
         Some(DebugMessenger::new(&entry, &instance)?)
     } else {

@@ -1,0 +1,45 @@
+//! `cargo bench`: median render times of every classic scene (when
+//! ../shared/scenes/classic exists) and every scene in scenes/, on the best
+//! Vulkan device (if any) and the CPU reference in f32 and f64. The same
+//! measurement as `glint bench --f64`; see src/bench.rs.
+
+use std::path::Path;
+
+use glint::bench::{run, BenchOptions};
+
+fn main() {
+    // `cargo bench` runs from the package root.
+    let mut scenes = Vec::new();
+    let classic = Path::new("../shared/scenes/classic");
+    if classic.is_dir() {
+        for name in ["test1", "test2", "spheres", "table", "SIGGRAPH"] {
+            scenes.push(classic.join(format!("{name}.scene")));
+        }
+    } else {
+        eprintln!("SKIPPED: classic scenes ({} not found)", classic.display());
+    }
+    let mut own: Vec<_> = std::fs::read_dir("scenes")
+        .expect("scenes/ exists")
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|e| e == "scene"))
+        .collect();
+    own.sort();
+    scenes.extend(own);
+    let gpu = glint::gpu::list_devices().is_ok_and(|d| !d.is_empty());
+    if !gpu {
+        eprintln!("SKIPPED: GPU column (no Vulkan device)");
+    }
+    let options = BenchOptions {
+        scenes,
+        width: 640,
+        height: 480,
+        repeat: 7,
+        gpu,
+        cpu_f32: true,
+        cpu_f64: true,
+        device: None,
+    };
+    let report = run(&options, &mut |line| eprintln!("{line}")).expect("benchmark runs");
+    println!("{}", report.to_markdown());
+}

@@ -1,0 +1,232 @@
+//! Render-time benchmarks: each scene on each backend, repeated, reported as
+//! medians (`glint bench`, `cargo bench`). Device creation and pipeline build
+//! happen once and are reported apart from the per-scene render times.
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use crate::bvh::Bvh;
+use crate::camera::Camera;
+use crate::cpu::{self, Precision};
+use crate::gpu::{Context, ContextOptions, DeviceSelector, GpuRenderOptions, GpuRenderer};
+use crate::layout::GpuScene;
+use crate::scene::read_scene;
+use crate::Error;
+
+#[derive(Clone, Debug)]
+pub struct BenchOptions {
+    pub scenes: Vec<PathBuf>,
+    pub width: u32,
+    pub height: u32,
+    pub repeat: usize,
+    pub gpu: bool,
+    pub cpu_f32: bool,
+    pub cpu_f64: bool,
+    pub device: Option<DeviceSelector>,
+}
+
+/// Median and spread of repeated timings.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Stat {
+    pub median: Duration,
+    pub min: Duration,
+    pub max: Duration,
+}
+
+impl Stat {
+    pub fn of(mut samples: Vec<Duration>) -> Option<Stat> {
+        if samples.is_empty() {
+            return None;
+        }
+        samples.sort();
+        let n = samples.len();
+        let median = if n % 2 == 1 {
+            samples[n / 2]
+        } else {
+            (samples[n / 2 - 1] + samples[n / 2]) / 2
+        };
+        Some(Stat {
+            median,
+            min: samples[0],
+            max: samples[n - 1],
+        })
+    }
+}
+
+#[derive(Clone, Debug)]
+pub struct SceneResult {
+    pub name: String,
+    pub primitives: usize,
+    pub bvh: Stat,
+    /// Upload + dispatch + readback, per render.
+    pub gpu: Option<Stat>,
+    pub cpu_f32: Option<Stat>,
+    pub cpu_f64: Option<Stat>,
+}
+
+#[derive(Clone, Debug)]
+pub struct BenchReport {
+    pub device: Option<String>,
+    pub device_creation: Option<Duration>,
+    pub pipeline_build: Option<Duration>,
+    pub cpu_threads: usize,
+    pub width: u32,
+    pub height: u32,
+    pub repeat: usize,
+    pub scenes: Vec<SceneResult>,
+}
+
+fn repeat(n: usize, mut f: impl FnMut() -> Result<(), Error>) -> Result<Option<Stat>, Error> {
+    let mut samples = Vec::with_capacity(n);
+    for _ in 0..n {
+        let start = Instant::now();
+        f()?;
+        samples.push(start.elapsed());
+    }
+    Ok(Stat::of(samples))
+}
+
+/// Runs the benchmark; `progress` receives one line per finished measurement.
+pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<BenchReport, Error> {
+    let camera = Camera::new(options.width, options.height);
+    let bg = [1.0; 3];
+    let n = options.repeat.max(1);
+    let mut gpu = None;
+    let mut report = BenchReport {
+        device: None,
+        device_creation: None,
+        pipeline_build: None,
+        cpu_threads: rayon::current_num_threads(),
+        width: options.width,
+        height: options.height,
+        repeat: n,
+        scenes: Vec::new(),
+    };
+    if options.gpu {
+        let start = Instant::now();
+        let ctx = Context::new(&ContextOptions {
+            device: options.device.clone(),
+            validation: false,
+        })?;
+        report.device_creation = Some(start.elapsed());
+        let renderer = GpuRenderer::new(&ctx)?;
+        report.pipeline_build = Some(renderer.pipeline_time);
+        report.device = Some(format!("{} ({})", ctx.info().name, ctx.info().driver));
+        gpu = Some(renderer);
+    }
+    for path in &options.scenes {
+        let scene = read_scene(path)?;
+        let name = path.file_stem().map_or_else(
+            || path.display().to_string(),
+            |s| s.to_string_lossy().into_owned(),
+        );
+        let mut bvh = Bvh::default();
+        let bvh_stat = repeat(n, || {
+            bvh = Bvh::build(&scene);
+            Ok(())
+        })?
+        .expect("n >= 1");
+        let mut result = SceneResult {
+            name: name.clone(),
+            primitives: scene.primitive_count(),
+            bvh: bvh_stat,
+            gpu: None,
+            cpu_f32: None,
+            cpu_f64: None,
+        };
+        if let Some(renderer) = &gpu {
+            let packed = GpuScene::pack(&scene, &bvh);
+            let opts = GpuRenderOptions::default();
+            // One untimed render first: drivers compile lazily on first use.
+            renderer.render(&packed, &camera, bg, &opts, &|_, _| {})?;
+            result.gpu = repeat(n, || {
+                renderer.render(&packed, &camera, bg, &opts, &|_, _| {})?;
+                Ok(())
+            })?;
+            progress(&format!("{name}: gpu {:.1} ms", ms(result.gpu)));
+        }
+        for (enabled, precision, slot) in [
+            (options.cpu_f32, Precision::F32, &mut result.cpu_f32),
+            (options.cpu_f64, Precision::F64, &mut result.cpu_f64),
+        ] {
+            if enabled {
+                *slot = repeat(n, || {
+                    cpu::render(&scene, &bvh, &camera, bg, precision, &|_, _| {});
+                    Ok(())
+                })?;
+                progress(&format!("{name}: cpu {precision:?} {:.1} ms", ms(*slot)));
+            }
+        }
+        report.scenes.push(result);
+    }
+    Ok(report)
+}
+
+fn ms(s: Option<Stat>) -> f64 {
+    s.map_or(f64::NAN, |s| s.median.as_secs_f64() * 1e3)
+}
+
+impl BenchReport {
+    /// A Markdown table of medians (min-max in brackets), in milliseconds.
+    pub fn to_markdown(&self) -> String {
+        let mut out = String::new();
+        let cell = |s: Option<Stat>| match s {
+            Some(s) => format!(
+                "{:.1} ({:.1}-{:.1})",
+                s.median.as_secs_f64() * 1e3,
+                s.min.as_secs_f64() * 1e3,
+                s.max.as_secs_f64() * 1e3
+            ),
+            None => "-".into(),
+        };
+        let _ = writeln!(
+            out,
+            "{}x{}, median of {} runs (min-max), milliseconds; CPU reference on {} threads",
+            self.width, self.height, self.repeat, self.cpu_threads
+        );
+        if let Some(device) = &self.device {
+            let _ = writeln!(
+                out,
+                "GPU: {device}; device creation {:.1} ms, pipeline build {:.1} ms (once)",
+                self.device_creation.unwrap_or_default().as_secs_f64() * 1e3,
+                self.pipeline_build.unwrap_or_default().as_secs_f64() * 1e3
+            );
+        }
+        let _ = writeln!(out);
+        let _ = writeln!(
+            out,
+            "| scene | primitives | BVH build | GPU render | CPU f32 | CPU f64 |"
+        );
+        let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|");
+        for s in &self.scenes {
+            let _ = writeln!(
+                out,
+                "| {} | {} | {} | {} | {} | {} |",
+                s.name,
+                s.primitives,
+                cell(Some(s.bvh)),
+                cell(s.gpu),
+                cell(s.cpu_f32),
+                cell(s.cpu_f64)
+            );
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn median_of_odd_and_even_counts() {
+        let d = Duration::from_millis;
+        assert_eq!(Stat::of(vec![d(3), d(1), d(2)]).unwrap().median, d(2));
+        assert_eq!(
+            Stat::of(vec![d(4), d(1), d(2), d(3)]).unwrap().median,
+            Duration::from_micros(2500)
+        );
+        assert!(Stat::of(vec![]).is_none());
+    }
+}

@@ -1,0 +1,297 @@
+//! The `glint` binary: exit codes, messages, output files.
+
+mod common;
+
+use std::path::Path;
+use std::process::{Command, Output};
+
+use common::*;
+
+fn glint(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_glint"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("run glint")
+}
+
+/// As `glint`, with the Vulkan loader pointed at no driver at all.
+fn glint_without_vulkan(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_glint"))
+        .args(args)
+        .current_dir(dir)
+        .env("VK_ICD_FILENAMES", "/nonexistent/icd.json")
+        .env("VK_DRIVER_FILES", "/nonexistent/icd.json")
+        .output()
+        .expect("run glint")
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+fn stdout(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+fn tmp() -> tempfile::TempDir {
+    tempfile::tempdir().expect("temp dir")
+}
+
+fn showcase() -> String {
+    repo_path("scenes/showcase.scene").display().to_string()
+}
+
+const SMALL: [&str; 4] = ["--width", "40", "--height", "30"];
+
+#[test]
+fn missing_scene_file_exits_2_naming_the_path() {
+    let d = tmp();
+    let o = glint(&["render", "nope.scene"], d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("cannot read scene file nope.scene"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
+fn bad_scene_exits_2_with_location_and_caret() {
+    let d = tmp();
+    std::fs::write(
+        d.path().join("bad.scene"),
+        "1\namb: 0 0 0\nsphere pos: 0 0 -3 rad: x\n",
+    )
+    .unwrap();
+    let o = glint(&["render", "bad.scene"], d.path());
+    assert_eq!(o.status.code(), Some(2));
+    let err = stderr(&o);
+    assert!(
+        err.contains("bad.scene:3:25: expected a number (the sphere radius), found `x`"),
+        "{err}"
+    );
+    assert!(err.contains("^"), "{err}");
+    assert!(
+        !d.path().join("bad.jpg").exists(),
+        "no image for a bad scene"
+    );
+}
+
+#[test]
+fn bad_flags_exit_2() {
+    let d = tmp();
+    for args in [
+        vec!["render", "x.scene", "--bogus"],
+        vec!["render", "x.scene", "--background", "2,0,0"],
+        vec!["render", "x.scene", "--backend", "quantum"],
+        vec!["render", "x.scene", "--width", "0"],
+        vec!["frobnicate"],
+    ] {
+        let o = glint(&args, d.path());
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains("error"), "{args:?}: {}", stderr(&o));
+    }
+}
+
+#[test]
+fn render_defaults_to_scene_stem_jpg_in_the_current_directory() {
+    let d = tmp();
+    let mut args = vec!["render", "--backend", "cpu"];
+    let scene = showcase();
+    args.push(&scene);
+    args.extend(SMALL);
+    let o = glint(&args, d.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(stdout(&o).contains("wrote showcase.jpg"), "{}", stdout(&o));
+    let img = image::open(d.path().join("showcase.jpg")).expect("a readable JPEG");
+    assert_eq!((img.width(), img.height()), (40, 30));
+    let leftovers: Vec<_> = std::fs::read_dir(d.path()).unwrap().flatten().collect();
+    assert_eq!(
+        leftovers.len(),
+        1,
+        "temporary files left behind: {leftovers:?}"
+    );
+}
+
+#[test]
+fn png_output_by_option_and_verbose_timings() {
+    let d = tmp();
+    let scene = showcase();
+    let mut args = vec!["render", &scene, "-o", "out.png", "--backend", "cpu", "-v"];
+    args.extend(SMALL);
+    let o = glint(&args, d.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    for phase in ["parse", "bvh", "cpu render", "write", "total"] {
+        assert!(
+            stdout(&o).contains(phase),
+            "missing {phase} in:\n{}",
+            stdout(&o)
+        );
+    }
+    let bytes = std::fs::read(d.path().join("out.png")).unwrap();
+    assert_eq!(&bytes[..8], b"\x89PNG\r\n\x1a\n");
+}
+
+#[test]
+fn failed_render_leaves_an_existing_image_untouched() {
+    let d = tmp();
+    std::fs::write(d.path().join("keep.png"), b"precious").unwrap();
+    std::fs::write(d.path().join("bad.scene"), "2\namb: 0 0 0\n").unwrap();
+    let o = glint(&["render", "bad.scene", "keep.png"], d.path());
+    assert_eq!(o.status.code(), Some(2));
+    assert_eq!(
+        std::fs::read(d.path().join("keep.png")).unwrap(),
+        b"precious"
+    );
+}
+
+#[test]
+fn unsupported_output_type_exits_1_and_says_which_types_work() {
+    let d = tmp();
+    let scene = showcase();
+    let mut args = vec!["render", &scene, "out.bmp", "--backend", "cpu"];
+    args.extend(SMALL);
+    let o = glint(&args, d.path());
+    assert_eq!(o.status.code(), Some(1));
+    assert!(
+        stderr(&o).contains("use a .png, .jpg or .jpeg file name"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(std::fs::read_dir(d.path()).unwrap().count(), 0);
+}
+
+#[test]
+fn f64_on_the_gpu_is_refused() {
+    let d = tmp();
+    let scene = showcase();
+    let o = glint(
+        &["render", &scene, "--backend", "gpu", "--precision", "f64"],
+        d.path(),
+    );
+    assert_eq!(o.status.code(), Some(1));
+    assert!(stderr(&o).contains("CPU reference only"), "{}", stderr(&o));
+}
+
+#[test]
+fn no_vulkan_device_exits_3_for_gpu_and_falls_back_for_auto() {
+    let d = tmp();
+    let scene = showcase();
+    let mut args = vec!["render", &scene, "--backend", "gpu"];
+    args.extend(SMALL);
+    let o = glint_without_vulkan(&args, d.path());
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--backend cpu"), "{}", stderr(&o));
+
+    let mut args = vec!["render", &scene, "--backend", "auto"];
+    args.extend(SMALL);
+    let o = glint_without_vulkan(&args, d.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("note: no usable Vulkan device"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(stdout(&o).contains("CPU reference"), "{}", stdout(&o));
+
+    let o = glint_without_vulkan(&["devices"], d.path());
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+}
+
+#[test]
+fn gpu_render_devices_and_unknown_device() {
+    if gpu().is_none() {
+        return;
+    }
+    let d = tmp();
+    let o = glint(&["devices"], d.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(stdout(&o).contains("index"), "{}", stdout(&o));
+
+    let scene = showcase();
+    let mut args = vec![
+        "render",
+        &scene,
+        "g.png",
+        "--backend",
+        "gpu",
+        "--device",
+        "0",
+        "--validation",
+    ];
+    args.extend(SMALL);
+    let o = glint(&args, d.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(stdout(&o).contains("GPU:"), "{}", stdout(&o));
+    assert!(
+        !stderr(&o).contains("validation layer reported"),
+        "{}",
+        stderr(&o)
+    );
+
+    let o = glint(
+        &[
+            "render",
+            &scene,
+            "--backend",
+            "gpu",
+            "--device",
+            "no such gpu",
+        ],
+        d.path(),
+    );
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("`glint devices` lists"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
+fn info_reports_counts_and_features() {
+    let d = tmp();
+    let o = glint(&["info", &showcase()], d.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(out.contains("spheres     6"), "{out}");
+    assert!(out.contains("lights      2"), "{out}");
+    assert!(
+        out.contains("calls for   spheres, triangles, point-light shadows"),
+        "{out}"
+    );
+}
+
+#[test]
+fn compare_reports_metrics_and_fails_on_request() {
+    let d = tmp();
+    let scene = showcase();
+    for (name, bg) in [("a.png", "1,1,1"), ("b.png", "1,1,1"), ("c.png", "0,0,0")] {
+        let mut args = vec![
+            "render",
+            &scene,
+            name,
+            "--backend",
+            "cpu",
+            "--background",
+            bg,
+        ];
+        args.extend(SMALL);
+        assert_eq!(glint(&args, d.path()).status.code(), Some(0));
+    }
+    let o = glint(&["compare", "a.png", "b.png", "--fail"], d.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("PSNR            inf dB"),
+        "{}",
+        stdout(&o)
+    );
+    let o = glint(
+        &["compare", "a.png", "c.png", "--diff", "d.png", "--fail"],
+        d.path(),
+    );
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stdout(&o).contains("worst pixels"), "{}", stdout(&o));
+    assert!(d.path().join("d.png").exists());
+}
