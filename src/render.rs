@@ -88,6 +88,9 @@ pub fn render(
         (Backend::Gpu, _) | (Backend::Auto, Precision::F32) => true,
     };
     let mut note = None;
+    if options.backend == Backend::Auto && !want_gpu {
+        note = Some("--precision f64 exists on the CPU reference only; rendered there".into());
+    }
     if want_gpu {
         let context_options = ContextOptions {
             device: options.device.clone(),

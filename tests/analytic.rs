@@ -366,3 +366,29 @@ fn a_plane_lit_from_behind_shows_ungated_specular() {
         "the case must exercise R.V > 0: {highlighted} pixels"
     );
 }
+
+#[test]
+fn an_axis_aligned_ray_along_a_box_face_still_hits() {
+    // The centre ray is exactly (0, 0, -1) from the origin: dir.x = 0 and
+    // origin.x = 0 lies on the x = 0 face of the quad's bounding box. A naive
+    // slab test forms (0 - 0) * (1 / 0) = NaN there and misses the box; the
+    // watertight test counts the shared edge x = 0 as inside, so the centre
+    // pixel must be the lit quad (0.1 + 1 * 0.5 * L.N with L = N = +z: 0.6),
+    // never the background.
+    let scene = scene_from(
+        "3\namb: 0.1 0.1 0.1\n\
+         triangle\n\
+         pos: 0 -1 -5 nor: 0 0 1 dif: 0.5 0.5 0.5 spe: 0 0 0 shi: 1\n\
+         pos: 1 -1 -5 nor: 0 0 1 dif: 0.5 0.5 0.5 spe: 0 0 0 shi: 1\n\
+         pos: 1 1 -5 nor: 0 0 1 dif: 0.5 0.5 0.5 spe: 0 0 0 shi: 1\n\
+         triangle\n\
+         pos: 0 -1 -5 nor: 0 0 1 dif: 0.5 0.5 0.5 spe: 0 0 0 shi: 1\n\
+         pos: 1 1 -5 nor: 0 0 1 dif: 0.5 0.5 0.5 spe: 0 0 0 shi: 1\n\
+         pos: 0 1 -5 nor: 0 0 1 dif: 0.5 0.5 0.5 spe: 0 0 0 shi: 1\n\
+         light pos: 0 0 0 col: 1 1 1\n",
+    );
+    for (name, fb) in all_backends(&scene, W, H, [0.0; 3]) {
+        assert_close(name, pixel(&fb, W / 2, H / 2), [0.6; 3], 1e-6);
+        assert_finite(name, &fb);
+    }
+}

@@ -44,7 +44,9 @@ pub struct RenderArgs {
     #[arg(long)]
     validation: bool,
     /// Tile edge in pixels for the GPU (work per submit).
-    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(8..=4096))]
+    /// At most 2048: a 2048x2048 tile's output buffer is 64 MiB, half of
+    /// lavapipe's 128 MiB per-buffer limit.
+    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(8..=2048))]
     tile: u32,
     /// Print timings (parse, BVH build, pipeline, upload, dispatch, readback).
     #[arg(short, long)]

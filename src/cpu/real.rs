@@ -47,7 +47,6 @@ pub trait Real:
     const OFFSET_INT_SCALE: Self;
 
     fn from_f64(x: f64) -> Self;
-    fn from_f32(x: f32) -> Self;
     fn from_u32(x: u32) -> Self;
     fn to_f32(self) -> f32;
     fn sqrt(self) -> Self;
@@ -100,9 +99,6 @@ macro_rules! impl_real {
             const OFFSET_INT_SCALE: Self = 256.0;
 
             fn from_f64(x: f64) -> Self {
-                x as $t
-            }
-            fn from_f32(x: f32) -> Self {
                 x as $t
             }
             fn from_u32(x: u32) -> Self {

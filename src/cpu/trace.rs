@@ -51,17 +51,9 @@ pub struct CpuScene<'a, R: Real> {
 
 impl<'a, R: Real> CpuScene<'a, R> {
     pub fn new(scene: &Scene, bvh: &'a Bvh, camera: &Camera, background: [f32; 3]) -> Self {
+        // f64 -> R once, as the GPU packing does for f32.
         let v = R::v3_from_f64;
-        // The f32 path rounds exactly as the GPU packing does (f64 -> f32 once).
-        let half = camera.half_extent_f32();
-        let half_extent = if std::mem::size_of::<R>() == 4 {
-            [R::from_f32(half[0]), R::from_f32(half[1])]
-        } else {
-            [
-                R::from_f64(camera.half_extent[0]),
-                R::from_f64(camera.half_extent[1]),
-            ]
-        };
+        let half_extent = camera.half_extent.map(R::from_f64);
         CpuScene {
             spheres: scene
                 .spheres
