@@ -3,29 +3,11 @@
 //! Vulkan device (if any) and the CPU reference in f32 and f64. The same
 //! measurement as `glint bench --f64`; see src/bench.rs.
 
-use std::path::Path;
-
-use glint::bench::{run, BenchOptions};
+use glint::bench::{default_scenes, run, BenchOptions};
 
 fn main() {
     // `cargo bench` runs from the package root.
-    let mut scenes = Vec::new();
-    let classic = Path::new("../shared/scenes/classic");
-    if classic.is_dir() {
-        for name in ["test1", "test2", "spheres", "table", "SIGGRAPH"] {
-            scenes.push(classic.join(format!("{name}.scene")));
-        }
-    } else {
-        eprintln!("SKIPPED: classic scenes ({} not found)", classic.display());
-    }
-    let mut own: Vec<_> = std::fs::read_dir("scenes")
-        .expect("scenes/ exists")
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|e| e == "scene"))
-        .collect();
-    own.sort();
-    scenes.extend(own);
+    let scenes = default_scenes(&mut |note| eprintln!("SKIPPED: {note}"));
     let gpu = glint::gpu::list_devices().is_ok_and(|d| !d.is_empty());
     if !gpu {
         eprintln!("SKIPPED: GPU column (no Vulkan device)");

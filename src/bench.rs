@@ -77,6 +77,37 @@ pub struct BenchReport {
     pub scenes: Vec<SceneResult>,
 }
 
+/// Where the course's classic scenes live, relative to the repository root.
+pub const CLASSIC_DIR: &str = "../shared/scenes/classic";
+pub const CLASSIC_SCENES: [&str; 5] = ["test1", "test2", "spheres", "table", "SIGGRAPH"];
+
+/// The default scene set, relative to the repository root: the classic scenes
+/// (when `CLASSIC_DIR` exists; otherwise `note` is told) and every `*.scene`
+/// directly in `scenes/`, sorted.
+pub fn default_scenes(note: &mut dyn FnMut(&str)) -> Vec<PathBuf> {
+    let mut out = Vec::new();
+    let classic = std::path::Path::new(CLASSIC_DIR);
+    if classic.is_dir() {
+        out.extend(
+            CLASSIC_SCENES
+                .iter()
+                .map(|n| classic.join(format!("{n}.scene"))),
+        );
+    } else {
+        note(&format!("{CLASSIC_DIR} not found: classic scenes skipped"));
+    }
+    let mut own: Vec<PathBuf> = std::fs::read_dir("scenes")
+        .into_iter()
+        .flatten()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|e| e == "scene"))
+        .collect();
+    own.sort();
+    out.extend(own);
+    out
+}
+
 fn repeat(n: usize, mut f: impl FnMut() -> Result<(), Error>) -> Result<Option<Stat>, Error> {
     let mut samples = Vec::with_capacity(n);
     for _ in 0..n {

@@ -1,8 +1,8 @@
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::Args;
-use glint::bench::{run as run_bench, BenchOptions};
+use glint::bench::{default_scenes, run as run_bench, BenchOptions};
 use glint::gpu::DeviceSelector;
 
 #[derive(Args, Debug)]
@@ -31,36 +31,9 @@ pub struct BenchArgs {
     device: Option<String>,
 }
 
-/// The default scene set: classic scenes (when the shared folder exists) and
-/// the project's own.
-pub fn default_scenes() -> Vec<PathBuf> {
-    let mut out = Vec::new();
-    let classic = Path::new("../shared/scenes/classic");
-    if classic.is_dir() {
-        for name in ["test1", "test2", "spheres", "table", "SIGGRAPH"] {
-            out.push(classic.join(format!("{name}.scene")));
-        }
-    } else {
-        eprintln!(
-            "note: {} not found; benchmarking scenes/ only",
-            classic.display()
-        );
-    }
-    let mut own: Vec<PathBuf> = std::fs::read_dir("scenes")
-        .into_iter()
-        .flatten()
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|e| e == "scene"))
-        .collect();
-    own.sort();
-    out.extend(own);
-    out
-}
-
 pub fn run(args: BenchArgs) -> anyhow::Result<ExitCode> {
     let scenes = if args.scenes.is_empty() {
-        default_scenes()
+        default_scenes(&mut |note| eprintln!("note: {note}"))
     } else {
         args.scenes
     };

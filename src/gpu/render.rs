@@ -126,44 +126,17 @@ impl GpuRenderer {
         let mut pools = self.create_pools()?;
         let upload_start = Instant::now();
         let frame = scene.frame(camera, background);
+        // (binding, name, contents) of everything uploaded once per render.
         let scene_buffers = self.upload(
             &pools,
             &[
-                (
-                    "frame",
-                    vk::BufferUsageFlags::UNIFORM_BUFFER,
-                    bytemuck::bytes_of(&frame).into(),
-                ),
-                (
-                    "spheres",
-                    vk::BufferUsageFlags::STORAGE_BUFFER,
-                    padded(&scene.spheres),
-                ),
-                (
-                    "triangles",
-                    vk::BufferUsageFlags::STORAGE_BUFFER,
-                    padded(&scene.triangles),
-                ),
-                (
-                    "shading",
-                    vk::BufferUsageFlags::STORAGE_BUFFER,
-                    padded(&scene.shading),
-                ),
-                (
-                    "lights",
-                    vk::BufferUsageFlags::STORAGE_BUFFER,
-                    padded(&scene.lights),
-                ),
-                (
-                    "bvh nodes",
-                    vk::BufferUsageFlags::STORAGE_BUFFER,
-                    padded(&scene.nodes),
-                ),
-                (
-                    "primitive refs",
-                    vk::BufferUsageFlags::STORAGE_BUFFER,
-                    padded(&scene.prim_refs),
-                ),
+                (0, "frame", bytemuck::bytes_of(&frame).into()),
+                (2, "spheres", padded(&scene.spheres)),
+                (3, "triangles", padded(&scene.triangles)),
+                (4, "shading", padded(&scene.shading)),
+                (5, "lights", padded(&scene.lights)),
+                (6, "bvh nodes", padded(&scene.nodes)),
+                (7, "primitive refs", padded(&scene.prim_refs)),
             ],
         )?;
         let tile_bytes = u64::from(tile_edge) * u64::from(tile_edge) * TEXEL_BYTES;
@@ -280,8 +253,8 @@ impl GpuRenderer {
     fn upload(
         &self,
         pools: &Pools,
-        items: &[(&str, vk::BufferUsageFlags, std::borrow::Cow<'_, [u8]>)],
-    ) -> Result<Vec<Buffer>, GpuError> {
+        items: &[(u32, &str, std::borrow::Cow<'_, [u8]>)],
+    ) -> Result<Vec<(u32, Buffer)>, GpuError> {
         let shared = &self.ctx.shared;
         let device = &shared.device;
         let total: u64 = items.iter().map(|(_, _, b)| b.len() as u64).sum();
@@ -295,7 +268,7 @@ impl GpuRenderer {
         let mut bytes = Vec::with_capacity(total as usize);
         let mut buffers = Vec::with_capacity(items.len());
         let mut regions = Vec::with_capacity(items.len());
-        for (name, usage, data) in items {
+        for (binding, name, data) in items {
             let size = data.len() as u64;
             regions.push(vk::BufferCopy {
                 src_offset: bytes.len() as u64,
@@ -303,13 +276,17 @@ impl GpuRenderer {
                 size,
             });
             bytes.extend_from_slice(data);
-            buffers.push(Buffer::new(
-                shared,
-                name,
-                size,
-                *usage | vk::BufferUsageFlags::TRANSFER_DST,
-                MemoryLocation::GpuOnly,
-            )?);
+            let usage = usage_for(BINDINGS[*binding as usize]);
+            buffers.push((
+                *binding,
+                Buffer::new(
+                    shared,
+                    name,
+                    size,
+                    usage | vk::BufferUsageFlags::TRANSFER_DST,
+                    MemoryLocation::GpuOnly,
+                )?,
+            ));
         }
         staging.write(&bytes);
         let cmd = self.command_buffer(pools)?;
@@ -323,7 +300,7 @@ impl GpuRenderer {
                         .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
                 )
                 .call("vkBeginCommandBuffer")?;
-            for (buffer, region) in buffers.iter().zip(&regions) {
+            for ((_, buffer), region) in buffers.iter().zip(&regions) {
                 device.cmd_copy_buffer(cmd, staging.raw, buffer.raw, &[*region]);
             }
             let barrier = vk::MemoryBarrier::default()
@@ -357,7 +334,7 @@ impl GpuRenderer {
         pools: &mut Pools,
         index: usize,
         tile_bytes: u64,
-        scene: &[Buffer],
+        scene: &[(u32, Buffer)],
     ) -> Result<Slot, GpuError> {
         let shared = &self.ctx.shared;
         let tile = Buffer::new(
@@ -391,26 +368,27 @@ impl GpuRenderer {
             )
         }
         .call("vkAllocateDescriptorSets")?[0];
-        // Binding order: frame, tile, then the scene lists, then output.
-        let mut bound: Vec<&Buffer> = vec![&scene[0], &tile];
-        bound.extend(&scene[1..]);
-        bound.push(&output);
+        let mut bound: Vec<(u32, &Buffer)> = scene.iter().map(|(b, buf)| (*b, buf)).collect();
+        bound.push((1, &tile));
+        bound.push((8, &output));
+        bound.sort_by_key(|(b, _)| *b);
+        debug_assert!(bound.iter().map(|(b, _)| *b as usize).eq(0..BINDINGS.len()));
         let infos: Vec<[vk::DescriptorBufferInfo; 1]> = bound
             .iter()
-            .map(|b| {
+            .map(|(_, b)| {
                 [vk::DescriptorBufferInfo::default()
                     .buffer(b.raw)
                     .range(vk::WHOLE_SIZE)]
             })
             .collect();
-        let writes: Vec<vk::WriteDescriptorSet> = infos
+        let writes: Vec<vk::WriteDescriptorSet> = bound
             .iter()
-            .enumerate()
-            .map(|(i, info)| {
+            .zip(&infos)
+            .map(|((binding, _), info)| {
                 vk::WriteDescriptorSet::default()
                     .dst_set(set)
-                    .dst_binding(i as u32)
-                    .descriptor_type(BINDINGS[i])
+                    .dst_binding(*binding)
+                    .descriptor_type(BINDINGS[*binding as usize])
                     .buffer_info(info)
             })
             .collect();
@@ -568,6 +546,14 @@ impl GpuRenderer {
             }
             result => GpuError::Vk { call, result },
         }
+    }
+}
+
+fn usage_for(ty: vk::DescriptorType) -> vk::BufferUsageFlags {
+    if ty == vk::DescriptorType::UNIFORM_BUFFER {
+        vk::BufferUsageFlags::UNIFORM_BUFFER
+    } else {
+        vk::BufferUsageFlags::STORAGE_BUFFER
     }
 }
 

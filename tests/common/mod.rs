@@ -14,7 +14,7 @@ use glint::gpu::{Context, ContextOptions, GpuRenderOptions, GpuRenderer};
 use glint::layout::GpuScene;
 use glint::scene::{parse_scene, Scene};
 
-pub const CLASSIC: [&str; 5] = ["test1", "test2", "spheres", "table", "SIGGRAPH"];
+pub const CLASSIC: [&str; 5] = glint::bench::CLASSIC_SCENES;
 
 pub fn in_ci() -> bool {
     std::env::var_os("CI").is_some_and(|v| !v.is_empty() && v != "false")
@@ -27,7 +27,7 @@ pub fn repo_path(rel: &str) -> PathBuf {
 /// `../shared/scenes/classic`, or `None` with a visible message when absent
 /// (a user's clone has none). In CI its absence is a failure.
 pub fn classic_dir() -> Option<PathBuf> {
-    let dir = repo_path("../shared/scenes/classic");
+    let dir = repo_path(glint::bench::CLASSIC_DIR);
     if dir.is_dir() {
         return Some(dir);
     }
