@@ -30,20 +30,8 @@ fn check(name: &str, scene: &Scene, w: u32, h: u32) {
     };
     assert_finite(name, &gpu);
     let cmp = compare_framebuffers(&cpu, &gpu, THRESHOLD_LEVELS).expect("same size");
-    eprintln!(
-        "{name}: max {:.4} levels, mean {:.6}, {} pixel(s) over {THRESHOLD_LEVELS}, PSNR {:.1} dB, FLIP {:.6}",
-        cmp.max_abs, cmp.mean_abs, cmp.over_threshold, cmp.psnr, cmp.flip_mean
-    );
     let allowed = ((w * h) as f64 * MAX_DIFFERING_FRACTION).floor() as usize;
-    if cmp.over_threshold > allowed {
-        let dir = write_artifacts(&format!("gpu_vs_cpu-{name}"), &gpu, &cpu, &cmp);
-        panic!(
-            "{name}: {} pixels differ by more than {THRESHOLD_LEVELS} levels (allowed {allowed}); \
-             images in {}\n{cmp}",
-            cmp.over_threshold,
-            dir.display()
-        );
-    }
+    assert_within(&format!("gpu_vs_cpu-{name}"), &gpu, &cpu, &cmp, allowed);
 }
 
 #[test]

@@ -150,6 +150,31 @@ pub fn render_gpu(scene: &Scene, w: u32, h: u32, bg: [f32; 3]) -> Option<Framebu
 
 pub const WHITE: [f32; 3] = [1.0; 3];
 
+/// Prints the comparison's summary; when more than `allowed` pixels exceed
+/// its threshold, writes the failure artefacts and fails naming them.
+pub fn assert_within(
+    name: &str,
+    actual: &Framebuffer,
+    expected: &Framebuffer,
+    cmp: &Comparison,
+    allowed: usize,
+) {
+    eprintln!(
+        "{name}: max {:.4} levels, mean {:.6}, {} pixel(s) over {}, PSNR {:.1} dB, FLIP {:.6}",
+        cmp.max_abs, cmp.mean_abs, cmp.over_threshold, cmp.threshold, cmp.psnr, cmp.flip_mean
+    );
+    if cmp.over_threshold > allowed {
+        let dir = write_artifacts(name, actual, expected, cmp);
+        panic!(
+            "{name}: {} pixels differ by more than {} levels (allowed {allowed}); \
+             images in {}\n{cmp}",
+            cmp.over_threshold,
+            cmp.threshold,
+            dir.display()
+        );
+    }
+}
+
 /// Writes `<name>-actual.png`, `-expected.png` and `-diff.png` under
 /// `target/test-artifacts/` and returns where.
 pub fn write_artifacts(
