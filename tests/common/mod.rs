@@ -16,6 +16,13 @@ use glint::scene::{parse_scene, Scene};
 
 pub const CLASSIC: [&str; 5] = glint::bench::CLASSIC_SCENES;
 
+/// Prints past libtest's output capture (which only intercepts the print
+/// macros), so that a skip is visible in a plain `cargo test` run.
+pub fn notice(message: &str) {
+    use std::io::Write;
+    let _ = writeln!(std::io::stderr(), "{message}");
+}
+
 pub fn in_ci() -> bool {
     std::env::var_os("CI").is_some_and(|v| !v.is_empty() && v != "false")
 }
@@ -36,10 +43,10 @@ pub fn classic_dir() -> Option<PathBuf> {
         "CI is set but the classic scenes are missing at {}",
         dir.display()
     );
-    eprintln!(
+    notice(&format!(
         "SKIPPED: classic scenes not found at {} (they live outside this repository)",
         dir.display()
-    );
+    ));
     None
 }
 
@@ -92,7 +99,7 @@ pub fn gpu() -> Option<&'static Mutex<Gpu>> {
                     ctx.validation_active() || !in_ci(),
                     "CI is set but VK_LAYER_KHRONOS_validation is not installed"
                 );
-                eprintln!(
+                notice(&format!(
                     "GPU tests on: {} ({}), validation {}",
                     ctx.info().name,
                     ctx.info().driver,
@@ -101,13 +108,15 @@ pub fn gpu() -> Option<&'static Mutex<Gpu>> {
                     } else {
                         "off (layer not installed)"
                     }
-                );
+                ));
                 let renderer = GpuRenderer::new(&ctx).expect("trace pipeline builds");
                 Some(Mutex::new(Gpu { ctx, renderer }))
             }
             Err(e) => {
                 assert!(!in_ci(), "CI is set but no Vulkan device is usable: {e}");
-                eprintln!("SKIPPED: GPU part of this test: no Vulkan device ({e})");
+                notice(&format!(
+                    "SKIPPED: GPU parts of these tests: no Vulkan device ({e})"
+                ));
                 None
             }
         }
