@@ -25,10 +25,6 @@ impl Timings {
         out
     }
 
-    pub fn get(&self, name: &str) -> Option<Duration> {
-        self.phases.iter().find(|(n, _)| *n == name).map(|p| p.1)
-    }
-
     pub fn total(&self) -> Duration {
         self.phases.iter().map(|p| p.1).sum()
     }

@@ -48,7 +48,6 @@ pub trait Real:
 
     fn from_f64(x: f64) -> Self;
     fn from_u32(x: u32) -> Self;
-    fn to_f32(self) -> f32;
     fn sqrt(self) -> Self;
     fn inverse_sqrt(self) -> Self;
     fn powf(self, y: Self) -> Self;
@@ -103,9 +102,6 @@ macro_rules! impl_real {
             }
             fn from_u32(x: u32) -> Self {
                 x as $t
-            }
-            fn to_f32(self) -> f32 {
-                self as f32
             }
             fn sqrt(self) -> Self {
                 <$t>::sqrt(self)

@@ -103,10 +103,6 @@ impl GpuRenderer {
         })
     }
 
-    pub fn context(&self) -> &Context {
-        &self.ctx
-    }
-
     /// Renders `scene` as seen by `camera`. `progress(tiles_done, tiles_total)`
     /// is called after each tile is read back.
     pub fn render(
