@@ -46,7 +46,7 @@ pub struct RenderArgs {
     /// Tile edge in pixels for the GPU (work per submit).
     /// At most 2048: a 2048x2048 tile's output buffer is 64 MiB, half of
     /// lavapipe's 128 MiB per-buffer limit.
-    #[arg(long, default_value_t = 256, value_parser = clap::value_parser!(u32).range(8..=2048))]
+    #[arg(long, default_value_t = glint::gpu::GpuRenderOptions::default().tile_size, value_parser = clap::value_parser!(u32).range(8..=2048))]
     tile: u32,
     /// Print timings (parse, BVH build, pipeline, upload, dispatch, readback).
     #[arg(short, long)]
