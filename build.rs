@@ -1,5 +1,9 @@
 //! Compiles shaders/*.wgsl to SPIR-V with naga at build time, so a broken
 //! shader fails `cargo build` with the shader's file, line and column.
+//!
+//! Each shader is written once per variant: its `override` constants resolved
+//! by naga's `process_overrides` (Vulkan specialization constants never reach
+//! naga's SPIR-V), so every variant holds only the code paths it uses.
 
 use std::path::Path;
 
@@ -8,6 +12,12 @@ use naga::proc::{BoundsCheckPolicies, BoundsCheckPolicy};
 use naga::valid::{Capabilities, ValidationFlags, Validator};
 
 const SHADERS: &[&str] = &["trace"];
+/// (file suffix, override values) of each variant; src/gpu/pipeline.rs loads
+/// them by suffix.
+const VARIANTS: &[(&str, &[(&str, f64)])] = &[
+    ("robust", &[("ROBUST", 1.0)]),
+    ("naive", &[("ROBUST", 0.0)]),
+];
 
 fn main() {
     let out_dir = std::env::var("OUT_DIR").expect("cargo sets OUT_DIR");
@@ -16,19 +26,21 @@ fn main() {
         println!("cargo:rerun-if-changed={path}");
         let source =
             std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("cannot read {path}: {e}"));
-        let words = compile(&source, &path).unwrap_or_else(|message| {
-            // Cargo shows a build script's stderr on failure; exit rather than
-            // panic so the message is not buried under a backtrace.
-            eprintln!("{message}");
-            std::process::exit(1);
-        });
-        let spv_path = Path::new(&out_dir).join(format!("{name}.spv"));
-        std::fs::write(&spv_path, bytemuck_words(&words))
-            .unwrap_or_else(|e| panic!("cannot write {}: {e}", spv_path.display()));
+        for (suffix, overrides) in VARIANTS {
+            let words = compile(&source, &path, overrides).unwrap_or_else(|message| {
+                // Cargo shows a build script's stderr on failure; exit rather
+                // than panic so the message is not buried under a backtrace.
+                eprintln!("{message}");
+                std::process::exit(1);
+            });
+            let spv_path = Path::new(&out_dir).join(format!("{name}_{suffix}.spv"));
+            std::fs::write(&spv_path, bytemuck_words(&words))
+                .unwrap_or_else(|e| panic!("cannot write {}: {e}", spv_path.display()));
+        }
     }
 }
 
-fn compile(source: &str, path: &str) -> Result<Vec<u32>, String> {
+fn compile(source: &str, path: &str, overrides: &[(&str, f64)]) -> Result<Vec<u32>, String> {
     let module = naga::front::wgsl::parse_str(source).map_err(|e| {
         format!(
             "shader parse error\n{}",
@@ -43,6 +55,13 @@ fn compile(source: &str, path: &str) -> Result<Vec<u32>, String> {
                 e.emit_to_string_with_path(source, path)
             )
         })?;
+    let mut constants = naga::back::PipelineConstants::default();
+    for (name, value) in overrides {
+        constants.insert(name.to_string(), *value);
+    }
+    let (module, info) =
+        naga::back::pipeline_constants::process_overrides(&module, &info, None, &constants)
+            .map_err(|e| format!("{path}: resolving overrides {overrides:?}: {e}"))?;
     let options = spv::Options {
         // SPIR-V 1.0 runs on every Vulkan 1.0 device, MoltenVK included.
         lang_version: (1, 0),
@@ -66,11 +85,8 @@ fn compile(source: &str, path: &str) -> Result<Vec<u32>, String> {
         fake_missing_bindings: true,
         ..spv::Options::default()
     };
-    let pipeline = spv::PipelineOptions {
-        shader_stage: naga::ShaderStage::Compute,
-        entry_point: "render_tile".to_string(),
-    };
-    spv::write_vec(&module, &info, &options, Some(&pipeline))
+    // No pipeline options: every entry point goes into the one module.
+    spv::write_vec(&module, &info, &options, None)
         .map_err(|e| format!("{path}: SPIR-V generation failed: {e}"))
 }
 

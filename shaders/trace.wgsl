@@ -12,6 +12,10 @@
 //   7  storage, read      array<u32>               primitive refs (bit 31: sphere)
 //   8  storage, rw        array<vec4<f32>>         tile output, linear RGB, row-major
 //
+// Entry points: render_tile (colour), probe_tile (per-pixel hit and shadow
+// verdicts, for the robustness suite) and probe_pixel (one pixel's whole
+// path, for `glint render --pixel`). Record layouts: src/probe.rs.
+//
 // The CPU reference (src/cpu/trace.rs) implements the same functions under
 // the same names; keep them in step.
 
@@ -94,6 +98,23 @@ const OFFSET_ORIGIN: f32 = 0.03125;
 const OFFSET_FLOAT_SCALE: f32 = 1.52587890625e-05;
 const OFFSET_INT_SCALE: f32 = 256.0;
 
+// true: the robust methods cited below. false: the textbook methods with one
+// scene-scale epsilon (Möller-Trumbore with a determinant epsilon, the
+// quadratic-formula sphere test, a fixed origin offset), compiled only into
+// the "naive" variant that `glint bench hard` measures against. Resolved by
+// naga's process_overrides in build.rs, so each variant carries one branch.
+override ROBUST: bool = true;
+// The naive variant's magic numbers: a distance and Möller-Trumbore's
+// determinant epsilon (Möller and Trumbore 1997).
+const NAIVE_OFFSET: f32 = 1e-4;
+const NAIVE_DET_EPSILON: f32 = 1e-6;
+// probe_tile flag bits.
+const FLAG_NONFINITE_COLOR: u32 = 1u;
+const FLAG_NONFINITE_SURFACE: u32 = 2u;
+// probe_pixel record: PATH_HEADER vec4s, then PATH_PER_LIGHT per light.
+const PATH_HEADER: u32 = 8u;
+const PATH_PER_LIGHT: u32 = 3u;
+
 // A ray with what every intersection test needs precomputed once.
 struct Ray {
     origin: vec3<f32>,
@@ -165,6 +186,9 @@ fn hit_aabb(ray: Ray, bmin: vec3<f32>, bmax: vec3<f32>, t_max: f32) -> f32 {
 // perpendicular distance to the centre and the stable root pair avoid
 // catastrophic cancellation for small or distant spheres.
 fn hit_sphere(ray: Ray, s: Sphere, t_max: f32) -> f32 {
+    if (!ROBUST) {
+        return hit_sphere_naive(ray, s, t_max);
+    }
     let f = ray.origin - s.center;
     let a = dot(ray.dir, ray.dir);
     let b = -dot(f, ray.dir);
@@ -188,11 +212,66 @@ fn hit_sphere(ray: Ray, s: Sphere, t_max: f32) -> f32 {
     return T_INF;
 }
 
+// The textbook quadratic: b^2 - 4ac cancels catastrophically when the sphere
+// is small against its distance.
+fn hit_sphere_naive(ray: Ray, s: Sphere, t_max: f32) -> f32 {
+    let oc = ray.origin - s.center;
+    let a = dot(ray.dir, ray.dir);
+    let b = 2.0 * dot(oc, ray.dir);
+    let c = dot(oc, oc) - s.radius * s.radius;
+    let disc = b * b - 4.0 * a * c;
+    if (disc < 0.0) {
+        return T_INF;
+    }
+    let root = sqrt(disc);
+    let t0 = (-b - root) / (2.0 * a);
+    let t1 = (-b + root) / (2.0 * a);
+    if (t0 > 0.0 && t0 < t_max) {
+        return t0;
+    }
+    if (t1 > 0.0 && t1 < t_max) {
+        return t1;
+    }
+    return T_INF;
+}
+
+// Möller and Trumbore 1997, as most ray tracers of this assignment write it:
+// barycentric bounds tested per triangle (shared edges can fall between two
+// neighbours) and an absolute determinant epsilon (small triangles vanish).
+fn hit_triangle_naive(ray: Ray, tri: Triangle, t_max: f32) -> vec3<f32> {
+    let e1 = tri.v[1].xyz - tri.v[0].xyz;
+    let e2 = tri.v[2].xyz - tri.v[0].xyz;
+    let pv = cross(ray.dir, e2);
+    let det = dot(e1, pv);
+    if (abs(det) < NAIVE_DET_EPSILON) {
+        return vec3(T_INF, 0.0, 0.0);
+    }
+    let inv_det = 1.0 / det;
+    let tv = ray.origin - tri.v[0].xyz;
+    let u = dot(tv, pv) * inv_det;
+    if (u < 0.0 || u > 1.0) {
+        return vec3(T_INF, 0.0, 0.0);
+    }
+    let qv = cross(tv, e1);
+    let v = dot(ray.dir, qv) * inv_det;
+    if (v < 0.0 || u + v > 1.0) {
+        return vec3(T_INF, 0.0, 0.0);
+    }
+    let t = dot(e2, qv) * inv_det;
+    if (t <= 0.0 || t >= t_max) {
+        return vec3(T_INF, 0.0, 0.0);
+    }
+    return vec3(t, u, v);
+}
+
 // Watertight ray/triangle test (Woop, Benthin, Wald 2013). Edges count as
 // inside for both neighbours, so a ray through a shared edge or vertex hits
 // at least one of them; there is no epsilon on the determinant.
 // Returns (t, b1, b2) with t = T_INF for a miss.
 fn hit_triangle(ray: Ray, tri: Triangle, t_max: f32) -> vec3<f32> {
+    if (!ROBUST) {
+        return hit_triangle_naive(ray, tri, t_max);
+    }
     let a = tri.v[0].xyz - ray.origin;
     let b = tri.v[1].xyz - ray.origin;
     let c = tri.v[2].xyz - ray.origin;
@@ -307,13 +386,18 @@ fn trace_closest(ray: Ray) -> Hit {
     return traverse(ray, T_INF, false);
 }
 
-// Whether anything lies strictly between the ray origin (t = 0) and the
-// light (t = 1; the direction is unnormalized and ends at the light).
-fn occluded(ray: Ray) -> bool {
-    return traverse(ray, 1.0, true).prim != NO_HIT;
+// The first blocker found strictly between the ray origin (t = 0) and the
+// light (t = 1; the direction is unnormalized and ends at the light), or a
+// Hit with prim NO_HIT.
+fn occluder(ray: Ray) -> Hit {
+    return traverse(ray, 1.0, true);
 }
 
+// Origin for a ray leaving p on the side n points to.
 fn offset_ray(p: vec3<f32>, n: vec3<f32>) -> vec3<f32> {
+    if (!ROBUST) {
+        return p + NAIVE_OFFSET * n;
+    }
     let of_i = vec3<i32>(OFFSET_INT_SCALE * n);
     let p_i = bitcast<vec3<f32>>(bitcast<vec3<i32>>(p) + select(of_i, -of_i, p < vec3(0.0)));
     return select(p_i, p + OFFSET_FLOAT_SCALE * n, abs(p) < vec3(OFFSET_ORIGIN));
@@ -363,7 +447,10 @@ fn surface_point(ray: Ray, hit: Hit) -> SurfacePoint {
     let w = vec3(b0, hit.b1, hit.b2);
     // The point from barycentrics, not origin + t * dir: its error does not
     // grow with the distance travelled (Ray Tracing Gems ch. 6).
-    let p = w.x * tri.v[0].xyz + w.y * tri.v[1].xyz + w.z * tri.v[2].xyz;
+    var p = w.x * tri.v[0].xyz + w.y * tri.v[1].xyz + w.z * tri.v[2].xyz;
+    if (!ROBUST) {
+        p = ray.origin + hit.t * ray.dir;
+    }
     let ng = safe_normalize(cross(tri.v[1].xyz - tri.v[0].xyz, tri.v[2].xyz - tri.v[0].xyz), vec3(0.0, 0.0, 1.0));
     let s0 = shading[3u * index];
     let s1 = shading[3u * index + 1u];
@@ -375,34 +462,82 @@ fn surface_point(ray: Ray, hit: Hit) -> SurfacePoint {
     return SurfacePoint(p, n, ng, kd, ks, shininess);
 }
 
-// Phong at a surface point: ambient once, plus each unshadowed light's
-// light * (kd * max(L.N, 0) + ks * max(R.V, 0)^shininess), clamped to [0, 1].
-fn shade_phong(sp: SurfacePoint, view: vec3<f32>) -> vec3<f32> {
-    var color = frame.ambient.xyz;
-    for (var i = 0u; i < frame.light_count; i++) {
-        let light = lights[i];
-        let to_light = light.position.xyz - sp.p;
-        // Leave from the side of the surface that faces the light.
-        let side = select(-sp.ng, sp.ng, dot(sp.ng, to_light) >= 0.0);
-        let origin = offset_ray(sp.p, side);
-        if (occluded(make_ray(origin, light.position.xyz - origin))) {
-            continue;
-        }
-        let l = safe_normalize(to_light, sp.n);
-        let ln = dot(l, sp.n);
-        let r = 2.0 * ln * sp.n - l;
-        let rv = max(dot(r, view), 0.0);
-        color += light.color.xyz * (sp.kd * max(ln, 0.0) + sp.ks * pow_c(rv, sp.shininess));
-    }
-    return clamp(color, vec3(0.0), vec3(1.0));
+// One light's part in the Phong sum at a surface point.
+struct LightTerm {
+    // Where the shadow ray starts.
+    origin: vec3<f32>,
+    // The first blocker found; prim NO_HIT when the light is visible.
+    blocker: Hit,
+    // The Phong factors, left zero when the light is blocked.
+    ln: f32,
+    rv: f32,
+    spec: f32,
+    contribution: vec3<f32>,
 }
 
-fn trace_primary(ray: Ray) -> vec3<f32> {
+// light * (kd * max(L.N, 0) + ks * max(R.V, 0)^shininess) if nothing lies
+// between the point and the light. The specular term is not gated by L.N.
+fn light_term(sp: SurfacePoint, view: vec3<f32>, light: Light) -> LightTerm {
+    let to_light = light.position.xyz - sp.p;
+    // Leave from the side of the surface that faces the light.
+    let side = select(-sp.ng, sp.ng, dot(sp.ng, to_light) >= 0.0);
+    let origin = offset_ray(sp.p, side);
+    var term = LightTerm(origin, occluder(make_ray(origin, light.position.xyz - origin)), 0.0, 0.0, 0.0, vec3(0.0));
+    if (term.blocker.prim != NO_HIT) {
+        return term;
+    }
+    let l = safe_normalize(to_light, sp.n);
+    term.ln = dot(l, sp.n);
+    let r = 2.0 * term.ln * sp.n - l;
+    term.rv = max(dot(r, view), 0.0);
+    term.spec = pow_c(term.rv, sp.shininess);
+    term.contribution = light.color.xyz * (sp.kd * max(term.ln, 0.0) + sp.ks * term.spec);
+    return term;
+}
+
+struct Shading {
+    // Ambient once plus every visible light's term, not yet clamped.
+    color: vec3<f32>,
+    // Bit i: light i is blocked (lights from 31 on share bit 31).
+    shadow_mask: u32,
+}
+
+fn shade_phong(sp: SurfacePoint, view: vec3<f32>) -> Shading {
+    var out = Shading(frame.ambient.xyz, 0u);
+    for (var i = 0u; i < frame.light_count; i++) {
+        let term = light_term(sp, view, lights[i]);
+        out.color += term.contribution;
+        if (term.blocker.prim != NO_HIT) {
+            out.shadow_mask |= 1u << min(i, 31u);
+        }
+    }
+    return out;
+}
+
+struct PixelResult {
+    hit: Hit,
+    color: vec3<f32>,
+    shadow_mask: u32,
+    flags: u32,
+}
+
+fn nonfinite(v: vec3<f32>) -> bool {
+    // Exponent bits all set: inf or NaN. A bit test, because fast-math
+    // compilers may fold x != x away.
+    let e = bitcast<vec3<u32>>(v) & vec3(0x7f800000u);
+    return any(e == vec3(0x7f800000u));
+}
+
+fn trace_primary(ray: Ray) -> PixelResult {
     let hit = trace_closest(ray);
     if (hit.prim == NO_HIT) {
-        return clamp(frame.background.xyz, vec3(0.0), vec3(1.0));
+        return PixelResult(hit, frame.background.xyz, 0u, 0u);
     }
-    return shade_phong(surface_point(ray, hit), -ray.dir);
+    let sp = surface_point(ray, hit);
+    let shading = shade_phong(sp, -ray.dir);
+    var flags = select(0u, FLAG_NONFINITE_COLOR, nonfinite(shading.color));
+    flags |= select(0u, FLAG_NONFINITE_SURFACE, nonfinite(sp.p) || nonfinite(sp.n));
+    return PixelResult(hit, shading.color, shading.shadow_mask, flags);
 }
 
 @compute @workgroup_size(WORKGROUP_SIZE, WORKGROUP_SIZE)
@@ -410,6 +545,51 @@ fn render_tile(@builtin(global_invocation_id) id: vec3<u32>) {
     if (id.x >= tile.size.x || id.y >= tile.size.y) {
         return;
     }
-    let color = trace_primary(pixel_ray(tile.origin.x + id.x, tile.origin.y + id.y));
-    output[id.y * tile.size.x + id.x] = vec4(color, 1.0);
+    let color = trace_primary(pixel_ray(tile.origin.x + id.x, tile.origin.y + id.y)).color;
+    output[id.y * tile.size.x + id.x] = vec4(clamp(color, vec3(0.0), vec3(1.0)), 1.0);
+}
+
+// Per pixel: (primitive, shadow mask, flags, t), integers bit-cast to f32.
+@compute @workgroup_size(WORKGROUP_SIZE, WORKGROUP_SIZE)
+fn probe_tile(@builtin(global_invocation_id) id: vec3<u32>) {
+    if (id.x >= tile.size.x || id.y >= tile.size.y) {
+        return;
+    }
+    let r = trace_primary(pixel_ray(tile.origin.x + id.x, tile.origin.y + id.y));
+    output[id.y * tile.size.x + id.x] =
+        vec4(bitcast<f32>(r.hit.prim), bitcast<f32>(r.shadow_mask), bitcast<f32>(r.flags), r.hit.t);
+}
+
+// The path of pixel tile.origin, as many lights as the output holds. One
+// invocation of a full-size workgroup does the work: lavapipe (Mesa 22.3)
+// returns wrong shadow verdicts from a workgroup of size 1.
+@compute @workgroup_size(WORKGROUP_SIZE, WORKGROUP_SIZE)
+fn probe_pixel(@builtin(local_invocation_index) lane: u32) {
+    if (lane != 0u) {
+        return;
+    }
+    let ray = pixel_ray(tile.origin.x, tile.origin.y);
+    let r = trace_primary(ray);
+    let room = (arrayLength(&output) - PATH_HEADER) / PATH_PER_LIGHT;
+    let shown = select(0u, min(frame.light_count, room), r.hit.prim != NO_HIT);
+    output[0] = vec4(bitcast<f32>(r.hit.prim), r.hit.t, r.hit.b1, r.hit.b2);
+    output[1] = vec4(ray.dir, bitcast<f32>(r.flags));
+    output[2] = vec4(r.color, bitcast<f32>(r.shadow_mask));
+    output[3] = vec4(0.0, 0.0, 0.0, bitcast<f32>(shown));
+    if (r.hit.prim == NO_HIT) {
+        return;
+    }
+    let sp = surface_point(ray, r.hit);
+    output[4] = vec4(sp.p, sp.shininess);
+    output[5] = vec4(sp.n, 0.0);
+    output[6] = vec4(sp.ng, 0.0);
+    output[7] = vec4(sp.kd, 0.0);
+    output[3] = vec4(sp.ks, bitcast<f32>(shown));
+    for (var i = 0u; i < shown; i++) {
+        let term = light_term(sp, -ray.dir, lights[i]);
+        let base = PATH_HEADER + PATH_PER_LIGHT * i;
+        output[base] = vec4(term.origin, bitcast<f32>(term.blocker.prim));
+        output[base + 1u] = vec4(term.ln, term.rv, term.spec, term.blocker.t);
+        output[base + 2u] = vec4(term.contribution, 0.0);
+    }
 }

@@ -11,6 +11,7 @@ use crate::camera::Camera;
 use crate::cpu::{self, Precision};
 use crate::gpu::{Context, ContextOptions, DeviceSelector, GpuRenderOptions, GpuRenderer};
 use crate::layout::GpuScene;
+use crate::methods::Methods;
 use crate::scene::read_scene;
 use crate::Error;
 
@@ -183,7 +184,15 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
         ] {
             if enabled {
                 *slot = repeat(n, || {
-                    cpu::render(&scene, &bvh, &camera, bg, precision, &|_, _| {});
+                    cpu::render(
+                        &scene,
+                        &bvh,
+                        &camera,
+                        bg,
+                        precision,
+                        Methods::Robust,
+                        &|_, _| {},
+                    );
                     Ok(())
                 })?;
                 progress(&format!("{name}: cpu {precision:?} {:.1} ms", ms(*slot)));

@@ -19,6 +19,14 @@ pub const SPHERE_BIT: u32 = 0x8000_0000;
 pub const BVH_MAX_DEPTH: u32 = 64;
 /// Compute workgroup edge: workgroups are `WORKGROUP_SIZE x WORKGROUP_SIZE`.
 pub const WORKGROUP_SIZE: u32 = 8;
+/// `probe_tile` flags: the unclamped colour, or the surface point or normal,
+/// has an infinite or NaN component.
+pub const FLAG_NONFINITE_COLOR: u32 = 1;
+pub const FLAG_NONFINITE_SURFACE: u32 = 2;
+/// `probe_pixel` record: `PATH_HEADER` texels, then `PATH_PER_LIGHT` per
+/// light (decoded by `probe::PathRecord::from_texels`).
+pub const PATH_HEADER: u32 = 8;
+pub const PATH_PER_LIGHT: u32 = 3;
 
 /// Per-image constants (uniform, binding 0).
 #[repr(C)]

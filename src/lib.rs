@@ -19,6 +19,8 @@ pub mod framebuffer;
 pub mod gpu;
 pub mod info;
 pub mod layout;
+pub mod methods;
+pub mod probe;
 pub mod render;
 pub mod scene;
 pub mod timing;

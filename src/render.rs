@@ -8,6 +8,8 @@ use crate::cpu::{self, Precision};
 use crate::framebuffer::Framebuffer;
 use crate::gpu::{Context, ContextOptions, DeviceSelector, GpuRenderOptions, GpuRenderer};
 use crate::layout::GpuScene;
+use crate::methods::Methods;
+use crate::probe::{PathRecord, ProbeImage};
 use crate::scene::Scene;
 use crate::timing::Timings;
 use crate::Error;
@@ -33,6 +35,9 @@ pub struct RenderOptions {
     pub precision: Precision,
     /// Enable the Vulkan validation layer when it is installed.
     pub validation: bool,
+    /// Intersection and offset methods on either backend; overrides
+    /// `gpu.methods`.
+    pub methods: Methods,
     pub gpu: GpuRenderOptions,
 }
 
@@ -46,6 +51,7 @@ impl Default for RenderOptions {
             device: None,
             precision: Precision::F32,
             validation: false,
+            methods: Methods::Robust,
             gpu: GpuRenderOptions::default(),
         }
     }
@@ -62,94 +68,242 @@ pub struct RenderOutput {
     pub validation_messages: u32,
 }
 
+/// Where the work runs, chosen once per call from `RenderOptions`.
+enum Engine {
+    Gpu {
+        ctx: Context,
+        renderer: GpuRenderer,
+        options: GpuRenderOptions,
+    },
+    Cpu(Precision),
+}
+
+struct Setup {
+    camera: Camera,
+    bvh: Bvh,
+    engine: Engine,
+    timings: Timings,
+    note: Option<String>,
+}
+
+impl Setup {
+    fn new(scene: &Scene, options: &RenderOptions) -> Result<Setup, Error> {
+        if options.width == 0 || options.height == 0 {
+            return Err(Error::InvalidOption(format!(
+                "image size {}x{} has no pixels",
+                options.width, options.height
+            )));
+        }
+        if options.backend == Backend::Gpu && options.precision == Precision::F64 {
+            return Err(Error::InvalidOption(
+                "--precision f64 exists on the CPU reference only; use --backend cpu".into(),
+            ));
+        }
+        let camera = Camera::new(options.width, options.height);
+        let mut timings = Timings::default();
+        let bvh = timings.time("bvh", || Bvh::build(scene));
+        let want_gpu = match (options.backend, options.precision) {
+            (Backend::Cpu, _) | (Backend::Auto, Precision::F64) => false,
+            (Backend::Gpu, _) | (Backend::Auto, Precision::F32) => true,
+        };
+        let mut note = None;
+        if options.backend == Backend::Auto && !want_gpu {
+            note = Some("--precision f64 exists on the CPU reference only; rendered there".into());
+        }
+        let mut engine = Engine::Cpu(options.precision);
+        if want_gpu {
+            let context_options = ContextOptions {
+                device: options.device.clone(),
+                validation: options.validation,
+            };
+            let start = Instant::now();
+            match Context::new(&context_options) {
+                Ok(ctx) => {
+                    timings.add("device", start.elapsed());
+                    let renderer = GpuRenderer::new(&ctx)?;
+                    timings.add("pipeline", renderer.pipeline_time);
+                    let gpu_options = GpuRenderOptions {
+                        methods: options.methods,
+                        ..options.gpu
+                    };
+                    engine = Engine::Gpu {
+                        ctx,
+                        renderer,
+                        options: gpu_options,
+                    };
+                }
+                Err(e) if options.backend == Backend::Auto => {
+                    note = Some(format!(
+                        "no usable Vulkan device ({e}); rendered on the CPU reference"
+                    ));
+                }
+                Err(e) => return Err(e.into()),
+            }
+        }
+        Ok(Setup {
+            camera,
+            bvh,
+            engine,
+            timings,
+            note,
+        })
+    }
+
+    fn renderer_name(&self) -> String {
+        match &self.engine {
+            Engine::Gpu { ctx, .. } => {
+                let info = ctx.info();
+                format!("GPU: {} ({}, {})", info.name, info.device_type, info.driver)
+            }
+            Engine::Cpu(precision) => {
+                let bits = match precision {
+                    Precision::F32 => "f32",
+                    Precision::F64 => "f64",
+                };
+                format!(
+                    "CPU reference ({bits}, {} threads)",
+                    rayon::current_num_threads()
+                )
+            }
+        }
+    }
+
+    fn validation_messages(&self) -> u32 {
+        match &self.engine {
+            Engine::Gpu { ctx, .. } => ctx.validation_messages(),
+            Engine::Cpu(_) => 0,
+        }
+    }
+}
+
 /// Renders `scene`; `progress(done, total)` counts tiles (GPU) or rows (CPU).
 pub fn render(
     scene: &Scene,
     options: &RenderOptions,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<RenderOutput, Error> {
-    if options.width == 0 || options.height == 0 {
-        return Err(Error::InvalidOption(format!(
-            "image size {}x{} has no pixels",
-            options.width, options.height
-        )));
-    }
-    if options.backend == Backend::Gpu && options.precision == Precision::F64 {
-        return Err(Error::InvalidOption(
-            "--precision f64 exists on the CPU reference only; use --backend cpu".into(),
-        ));
-    }
-    let camera = Camera::new(options.width, options.height);
-    let mut timings = Timings::default();
-    let bvh = timings.time("bvh", || Bvh::build(scene));
-
-    let want_gpu = match (options.backend, options.precision) {
-        (Backend::Cpu, _) | (Backend::Auto, Precision::F64) => false,
-        (Backend::Gpu, _) | (Backend::Auto, Precision::F32) => true,
-    };
-    let mut note = None;
-    if options.backend == Backend::Auto && !want_gpu {
-        note = Some("--precision f64 exists on the CPU reference only; rendered there".into());
-    }
-    if want_gpu {
-        let context_options = ContextOptions {
-            device: options.device.clone(),
-            validation: options.validation,
-        };
-        let start = Instant::now();
-        match Context::new(&context_options) {
-            Ok(ctx) => {
-                timings.add("device", start.elapsed());
-                let renderer = GpuRenderer::new(&ctx)?;
-                timings.add("pipeline", renderer.pipeline_time);
-                let packed = timings.time("pack", || GpuScene::pack(scene, &bvh));
-                let (framebuffer, gpu_timings) = renderer.render(
-                    &packed,
-                    &camera,
-                    options.background,
-                    &options.gpu,
-                    progress,
-                )?;
-                timings.extend(&gpu_timings);
-                let info = ctx.info();
-                return Ok(RenderOutput {
-                    framebuffer,
-                    timings,
-                    renderer: format!("GPU: {} ({}, {})", info.name, info.device_type, info.driver),
-                    note,
-                    validation_messages: ctx.validation_messages(),
-                });
-            }
-            Err(e) if options.backend == Backend::Auto => {
-                note = Some(format!(
-                    "no usable Vulkan device ({e}); rendered on the CPU reference"
-                ));
-            }
-            Err(e) => return Err(e.into()),
+    let mut setup = Setup::new(scene, options)?;
+    let framebuffer = match &setup.engine {
+        Engine::Gpu {
+            renderer,
+            options: gpu_options,
+            ..
+        } => {
+            let packed = setup
+                .timings
+                .time("pack", || GpuScene::pack(scene, &setup.bvh));
+            let (framebuffer, gpu_timings) = renderer.render(
+                &packed,
+                &setup.camera,
+                options.background,
+                gpu_options,
+                progress,
+            )?;
+            setup.timings.extend(&gpu_timings);
+            framebuffer
         }
-    }
-    let start = Instant::now();
-    let framebuffer = cpu::render(
-        scene,
-        &bvh,
-        &camera,
-        options.background,
-        options.precision,
-        progress,
-    );
-    timings.add("cpu render", start.elapsed());
-    let bits = match options.precision {
-        Precision::F32 => "f32",
-        Precision::F64 => "f64",
+        Engine::Cpu(precision) => {
+            let start = Instant::now();
+            let framebuffer = cpu::render(
+                scene,
+                &setup.bvh,
+                &setup.camera,
+                options.background,
+                *precision,
+                options.methods,
+                progress,
+            );
+            setup.timings.add("cpu render", start.elapsed());
+            framebuffer
+        }
     };
     Ok(RenderOutput {
         framebuffer,
-        timings,
-        renderer: format!(
-            "CPU reference ({bits}, {} threads)",
-            rayon::current_num_threads()
+        renderer: setup.renderer_name(),
+        validation_messages: setup.validation_messages(),
+        timings: setup.timings,
+        note: setup.note,
+    })
+}
+
+/// A probe result and what produced it.
+pub struct Probed<T> {
+    pub value: T,
+    /// As `RenderOutput::renderer`.
+    pub renderer: String,
+    pub note: Option<String>,
+    pub validation_messages: u32,
+}
+
+/// Every pixel's primary hit and shadow verdicts on the chosen backend.
+pub fn probe(scene: &Scene, options: &RenderOptions) -> Result<Probed<ProbeImage>, Error> {
+    let setup = Setup::new(scene, options)?;
+    let value = match &setup.engine {
+        Engine::Gpu {
+            renderer,
+            options: gpu_options,
+            ..
+        } => renderer.probe(
+            &GpuScene::pack(scene, &setup.bvh),
+            &setup.camera,
+            gpu_options,
+        )?,
+        Engine::Cpu(precision) => cpu::probe(
+            scene,
+            &setup.bvh,
+            &setup.camera,
+            *precision,
+            options.methods,
         ),
-        note,
-        validation_messages: 0,
+    };
+    Ok(Probed {
+        value,
+        renderer: setup.renderer_name(),
+        validation_messages: setup.validation_messages(),
+        note: setup.note,
+    })
+}
+
+/// The path of pixel (x, y) on the chosen backend: hit, surface, each light's
+/// shadow verdict and Phong terms.
+pub fn pixel_path(
+    scene: &Scene,
+    options: &RenderOptions,
+    pixel: [u32; 2],
+) -> Result<Probed<PathRecord>, Error> {
+    if pixel[0] >= options.width || pixel[1] >= options.height {
+        return Err(Error::InvalidOption(format!(
+            "pixel {},{} is outside the {}x{} image (x counts from 0 at the left, y from 0 at the top)",
+            pixel[0], pixel[1], options.width, options.height
+        )));
+    }
+    let setup = Setup::new(scene, options)?;
+    let value = match &setup.engine {
+        Engine::Gpu {
+            renderer,
+            options: gpu_options,
+            ..
+        } => renderer.pixel_path(
+            &GpuScene::pack(scene, &setup.bvh),
+            &setup.camera,
+            options.background,
+            pixel,
+            gpu_options,
+        )?,
+        Engine::Cpu(precision) => cpu::pixel_path(
+            scene,
+            &setup.bvh,
+            &setup.camera,
+            options.background,
+            *precision,
+            options.methods,
+            pixel,
+        ),
+    };
+    Ok(Probed {
+        value,
+        renderer: setup.renderer_name(),
+        validation_messages: setup.validation_messages(),
+        note: setup.note,
     })
 }

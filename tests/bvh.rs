@@ -196,8 +196,24 @@ fn bvh_traversal_equals_brute_force() {
         let bvh = Bvh::build(&scene);
         let brute = single_leaf(&scene, &bvh);
         for precision in [Precision::F32, Precision::F64] {
-            let a = glint::cpu::render(&scene, &bvh, &camera, WHITE, precision, &|_, _| {});
-            let b = glint::cpu::render(&scene, &brute, &camera, WHITE, precision, &|_, _| {});
+            let a = glint::cpu::render(
+                &scene,
+                &bvh,
+                &camera,
+                WHITE,
+                precision,
+                glint::methods::Methods::Robust,
+                &|_, _| {},
+            );
+            let b = glint::cpu::render(
+                &scene,
+                &brute,
+                &camera,
+                WHITE,
+                precision,
+                glint::methods::Methods::Robust,
+                &|_, _| {},
+            );
             assert_same_image(&format!("bvh-vs-brute-{seed}-cpu-{precision:?}"), &a, &b);
         }
         if let Some(gpu) = gpu() {

@@ -149,6 +149,17 @@ fn shared_constants_match() {
         constant(&m, "NO_HIT"),
         Literal::U32(glint::cpu::trace::NO_HIT)
     );
+    assert_eq!(constant(&m, "NO_HIT"), Literal::U32(glint::probe::NO_HIT));
+    assert_eq!(
+        constant(&m, "FLAG_NONFINITE_COLOR"),
+        Literal::U32(FLAG_NONFINITE_COLOR)
+    );
+    assert_eq!(
+        constant(&m, "FLAG_NONFINITE_SURFACE"),
+        Literal::U32(FLAG_NONFINITE_SURFACE)
+    );
+    assert_eq!(constant(&m, "PATH_HEADER"), Literal::U32(PATH_HEADER));
+    assert_eq!(constant(&m, "PATH_PER_LIGHT"), Literal::U32(PATH_PER_LIGHT));
     // Compared as bits: the CPU f32 twin must use the shader's exact values.
     let pairs = [
         ("T_INF", <f32 as Real>::T_INF),
@@ -157,6 +168,8 @@ fn shared_constants_match() {
         ("OFFSET_ORIGIN", <f32 as Real>::OFFSET_ORIGIN),
         ("OFFSET_FLOAT_SCALE", <f32 as Real>::OFFSET_FLOAT_SCALE),
         ("OFFSET_INT_SCALE", <f32 as Real>::OFFSET_INT_SCALE),
+        ("NAIVE_OFFSET", <f32 as Real>::NAIVE_OFFSET),
+        ("NAIVE_DET_EPSILON", <f32 as Real>::NAIVE_DET_EPSILON),
     ];
     for (name, rust) in pairs {
         assert_eq!(f32_const(&m, name).to_bits(), rust.to_bits(), "{name}");

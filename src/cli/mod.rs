@@ -47,6 +47,12 @@ pub enum BackendArg {
 }
 
 #[derive(Clone, Copy, Debug, ValueEnum)]
+pub enum MethodsArg {
+    Robust,
+    Naive,
+}
+
+#[derive(Clone, Copy, Debug, ValueEnum)]
 pub enum PrecisionArg {
     F32,
     F64,

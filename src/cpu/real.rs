@@ -45,9 +45,13 @@ pub trait Real:
     const OFFSET_ORIGIN: Self;
     const OFFSET_FLOAT_SCALE: Self;
     const OFFSET_INT_SCALE: Self;
+    /// The naive methods' magic numbers; see `NAIVE_OFFSET` in the shader.
+    const NAIVE_OFFSET: Self;
+    const NAIVE_DET_EPSILON: Self;
 
     fn from_f64(x: f64) -> Self;
     fn from_u32(x: u32) -> Self;
+    fn to_f64(self) -> f64;
     fn sqrt(self) -> Self;
     fn inverse_sqrt(self) -> Self;
     fn powf(self, y: Self) -> Self;
@@ -66,6 +70,9 @@ pub trait Real:
     fn v3_from_f64(v: DVec3) -> Self::V3;
     fn v3_from_f32(v: [f32; 3]) -> Self::V3;
     fn v3_to_f32(v: Self::V3) -> [f32; 3];
+    fn v3_to_f64(v: Self::V3) -> [f64; 3];
+    /// Whether any component is infinite or NaN.
+    fn nonfinite(v: Self::V3) -> bool;
     fn dot(a: Self::V3, b: Self::V3) -> Self;
     fn cross(a: Self::V3, b: Self::V3) -> Self::V3;
     fn normalize(v: Self::V3) -> Self::V3;
@@ -96,12 +103,17 @@ macro_rules! impl_real {
             const OFFSET_ORIGIN: Self = 1.0 / 32.0;
             const OFFSET_FLOAT_SCALE: Self = 1.0 / 65536.0 * $eps_ratio;
             const OFFSET_INT_SCALE: Self = 256.0;
+            const NAIVE_OFFSET: Self = 1e-4;
+            const NAIVE_DET_EPSILON: Self = 1e-6;
 
             fn from_f64(x: f64) -> Self {
                 x as $t
             }
             fn from_u32(x: u32) -> Self {
                 x as $t
+            }
+            fn to_f64(self) -> f64 {
+                self as f64
             }
             fn sqrt(self) -> Self {
                 <$t>::sqrt(self)
@@ -132,6 +144,12 @@ macro_rules! impl_real {
             }
             fn v3_to_f32(v: $v) -> [f32; 3] {
                 [v.x as f32, v.y as f32, v.z as f32]
+            }
+            fn v3_to_f64(v: $v) -> [f64; 3] {
+                [v.x as f64, v.y as f64, v.z as f64]
+            }
+            fn nonfinite(v: $v) -> bool {
+                !v.is_finite()
             }
             fn dot(a: $v, b: $v) -> Self {
                 a.dot(b)

@@ -4,7 +4,8 @@
 
 use crate::bvh::Bvh;
 use crate::camera::Camera;
-use crate::layout::{GpuBvhNode, SPHERE_BIT};
+use crate::layout::{GpuBvhNode, FLAG_NONFINITE_COLOR, FLAG_NONFINITE_SURFACE, SPHERE_BIT};
+use crate::methods::Methods;
 use crate::scene::Scene;
 
 use super::real::Real;
@@ -47,10 +48,18 @@ pub struct CpuScene<'a, R: Real> {
     pub background: R::V3,
     pub half_extent: [R; 2],
     pub size: [u32; 2],
+    /// The shader's `ROBUST` override.
+    pub methods: Methods,
 }
 
 impl<'a, R: Real> CpuScene<'a, R> {
-    pub fn new(scene: &Scene, bvh: &'a Bvh, camera: &Camera, background: [f32; 3]) -> Self {
+    pub fn new(
+        scene: &Scene,
+        bvh: &'a Bvh,
+        camera: &Camera,
+        background: [f32; 3],
+        methods: Methods,
+    ) -> Self {
         // f64 -> R once, as the GPU packing does for f32.
         let v = R::v3_from_f64;
         let half_extent = camera.half_extent.map(R::from_f64);
@@ -97,6 +106,7 @@ impl<'a, R: Real> CpuScene<'a, R> {
             background: R::v3_from_f32(background),
             half_extent,
             size: [camera.width, camera.height],
+            methods,
         }
     }
 }
@@ -200,6 +210,54 @@ pub fn hit_sphere<R: Real>(ray: &Ray<R>, s: &Sphere<R>, t_max: R) -> R {
     R::T_INF
 }
 
+pub fn hit_sphere_naive<R: Real>(ray: &Ray<R>, s: &Sphere<R>, t_max: R) -> R {
+    let oc = ray.origin - s.center;
+    let a = R::dot(ray.dir, ray.dir);
+    let b = R::TWO * R::dot(oc, ray.dir);
+    let c = R::dot(oc, oc) - s.radius * s.radius;
+    let disc = b * b - R::from_f64(4.0) * a * c;
+    if disc < R::ZERO {
+        return R::T_INF;
+    }
+    let root = disc.sqrt();
+    let t0 = (-b - root) / (R::TWO * a);
+    let t1 = (-b + root) / (R::TWO * a);
+    if t0 > R::ZERO && t0 < t_max {
+        return t0;
+    }
+    if t1 > R::ZERO && t1 < t_max {
+        return t1;
+    }
+    R::T_INF
+}
+
+pub fn hit_triangle_naive<R: Real>(ray: &Ray<R>, tri: &[R::V3; 3], t_max: R) -> (R, R, R) {
+    let miss = (R::T_INF, R::ZERO, R::ZERO);
+    let e1 = tri[1] - tri[0];
+    let e2 = tri[2] - tri[0];
+    let pv = R::cross(ray.dir, e2);
+    let det = R::dot(e1, pv);
+    if det.abs() < R::NAIVE_DET_EPSILON {
+        return miss;
+    }
+    let inv_det = R::ONE / det;
+    let tv = ray.origin - tri[0];
+    let u = R::dot(tv, pv) * inv_det;
+    if u < R::ZERO || u > R::ONE {
+        return miss;
+    }
+    let qv = R::cross(tv, e1);
+    let v = R::dot(ray.dir, qv) * inv_det;
+    if v < R::ZERO || u + v > R::ONE {
+        return miss;
+    }
+    let t = R::dot(e2, qv) * inv_det;
+    if t <= R::ZERO || t >= t_max {
+        return miss;
+    }
+    (t, u, v)
+}
+
 /// Returns (t, b1, b2), t = `T_INF` for a miss.
 pub fn hit_triangle<R: Real>(ray: &Ray<R>, tri: &[R::V3; 3], t_max: R) -> (R, R, R) {
     let miss = (R::T_INF, R::ZERO, R::ZERO);
@@ -247,10 +305,17 @@ fn hit_leaf<R: Real>(
     any_hit: bool,
 ) -> bool {
     let first = node.right_or_first as usize;
+    // The shader branches on ROBUST inside hit_sphere and hit_triangle.
+    let robust = scene.methods == Methods::Robust;
     for &prim in &scene.prim_refs[first..first + node.count as usize] {
         let index = (prim & !SPHERE_BIT) as usize;
         if prim & SPHERE_BIT != 0 {
-            let t = hit_sphere(ray, &scene.spheres[index], best.t);
+            let sphere = &scene.spheres[index];
+            let t = if robust {
+                hit_sphere(ray, sphere, best.t)
+            } else {
+                hit_sphere_naive(ray, sphere, best.t)
+            };
             if t < best.t {
                 *best = Hit {
                     t,
@@ -263,7 +328,12 @@ fn hit_leaf<R: Real>(
                 }
             }
         } else {
-            let (t, b1, b2) = hit_triangle(ray, &scene.triangles[index], best.t);
+            let tri = &scene.triangles[index];
+            let (t, b1, b2) = if robust {
+                hit_triangle(ray, tri, best.t)
+            } else {
+                hit_triangle_naive(ray, tri, best.t)
+            };
             if t < best.t {
                 *best = Hit { t, prim, b1, b2 };
                 if any_hit {
@@ -330,8 +400,15 @@ pub fn trace_closest<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>) -> Hit<R> {
     traverse(scene, ray, R::T_INF, false)
 }
 
-pub fn occluded<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>) -> bool {
-    traverse(scene, ray, R::ONE, true).prim != NO_HIT
+pub fn occluder<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>) -> Hit<R> {
+    traverse(scene, ray, R::ONE, true)
+}
+
+pub fn offset_ray<R: Real>(scene: &CpuScene<R>, p: R::V3, n: R::V3) -> R::V3 {
+    match scene.methods {
+        Methods::Robust => R::offset_ray(p, n),
+        Methods::Naive => p + n * R::NAIVE_OFFSET,
+    }
 }
 
 pub fn safe_normalize<R: Real>(v: R::V3, fallback: R::V3) -> R::V3 {
@@ -381,7 +458,10 @@ pub fn surface_point<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>, hit: &Hit<R>) -
     let tri = &scene.triangles[index];
     let b0 = R::ONE - hit.b1 - hit.b2;
     let w = [b0, hit.b1, hit.b2];
-    let p = tri[0] * w[0] + tri[1] * w[1] + tri[2] * w[2];
+    let p = match scene.methods {
+        Methods::Robust => tri[0] * w[0] + tri[1] * w[1] + tri[2] * w[2],
+        Methods::Naive => ray.origin + ray.dir * hit.t,
+    };
     let up = R::v3(R::ZERO, R::ZERO, R::ONE);
     let ng = safe_normalize::<R>(R::cross(tri[1] - tri[0], tri[2] - tri[0]), up);
     let s = &scene.shading[index];
@@ -399,33 +479,103 @@ pub fn surface_point<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>, hit: &Hit<R>) -
     }
 }
 
-pub fn shade_phong<R: Real>(scene: &CpuScene<R>, sp: &SurfacePoint<R>, view: R::V3) -> R::V3 {
-    let mut color = scene.ambient;
-    for light in &scene.lights {
-        let to_light = light.position - sp.p;
-        let side = if R::dot(sp.ng, to_light) >= R::ZERO {
-            sp.ng
-        } else {
-            -sp.ng
-        };
-        let origin = R::offset_ray(sp.p, side);
-        if occluded(scene, &make_ray(origin, light.position - origin)) {
-            continue;
-        }
-        let l = safe_normalize::<R>(to_light, sp.n);
-        let ln = R::dot(l, sp.n);
-        let r = sp.n * (R::TWO * ln) - l;
-        let rv = R::dot(r, view).max(R::ZERO);
-        let spec = pow_c(rv, sp.shininess);
-        color = color + light.color * (sp.kd * ln.max(R::ZERO) + sp.ks * spec);
-    }
-    R::clamp01(color)
+#[derive(Clone, Copy, Debug)]
+pub struct LightTerm<R: Real> {
+    pub origin: R::V3,
+    pub blocker: Hit<R>,
+    pub ln: R,
+    pub rv: R,
+    pub spec: R,
+    pub contribution: R::V3,
 }
 
-pub fn trace_primary<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>) -> R::V3 {
+pub fn light_term<R: Real>(
+    scene: &CpuScene<R>,
+    sp: &SurfacePoint<R>,
+    view: R::V3,
+    light: &Light<R>,
+) -> LightTerm<R> {
+    let to_light = light.position - sp.p;
+    let side = if R::dot(sp.ng, to_light) >= R::ZERO {
+        sp.ng
+    } else {
+        -sp.ng
+    };
+    let origin = offset_ray(scene, sp.p, side);
+    let zero = R::v3(R::ZERO, R::ZERO, R::ZERO);
+    let mut term = LightTerm {
+        origin,
+        blocker: occluder(scene, &make_ray(origin, light.position - origin)),
+        ln: R::ZERO,
+        rv: R::ZERO,
+        spec: R::ZERO,
+        contribution: zero,
+    };
+    if term.blocker.prim != NO_HIT {
+        return term;
+    }
+    let l = safe_normalize::<R>(to_light, sp.n);
+    term.ln = R::dot(l, sp.n);
+    let r = sp.n * (R::TWO * term.ln) - l;
+    term.rv = R::dot(r, view).max(R::ZERO);
+    term.spec = pow_c(term.rv, sp.shininess);
+    term.contribution = light.color * (sp.kd * term.ln.max(R::ZERO) + sp.ks * term.spec);
+    term
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct Shading<R: Real> {
+    pub color: R::V3,
+    pub shadow_mask: u32,
+}
+
+pub fn shade_phong<R: Real>(scene: &CpuScene<R>, sp: &SurfacePoint<R>, view: R::V3) -> Shading<R> {
+    let mut out = Shading {
+        color: scene.ambient,
+        shadow_mask: 0,
+    };
+    for (i, light) in scene.lights.iter().enumerate() {
+        let term = light_term(scene, sp, view, light);
+        out.color = out.color + term.contribution;
+        if term.blocker.prim != NO_HIT {
+            out.shadow_mask |= 1 << i.min(31);
+        }
+    }
+    out
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct PixelResult<R: Real> {
+    pub hit: Hit<R>,
+    /// Not yet clamped.
+    pub color: R::V3,
+    pub shadow_mask: u32,
+    pub flags: u32,
+}
+
+pub fn trace_primary<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>) -> PixelResult<R> {
     let hit = trace_closest(scene, ray);
     if hit.prim == NO_HIT {
-        return R::clamp01(scene.background);
+        return PixelResult {
+            hit,
+            color: scene.background,
+            shadow_mask: 0,
+            flags: 0,
+        };
     }
-    shade_phong(scene, &surface_point(scene, ray, &hit), -ray.dir)
+    let sp = surface_point(scene, ray, &hit);
+    let shading = shade_phong(scene, &sp, -ray.dir);
+    let mut flags = 0;
+    if R::nonfinite(shading.color) {
+        flags |= FLAG_NONFINITE_COLOR;
+    }
+    if R::nonfinite(sp.p) || R::nonfinite(sp.n) {
+        flags |= FLAG_NONFINITE_SURFACE;
+    }
+    PixelResult {
+        hit,
+        color: shading.color,
+        shadow_mask: shading.shadow_mask,
+        flags,
+    }
 }

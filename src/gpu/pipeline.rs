@@ -1,16 +1,48 @@
-//! The trace compute pipeline: SPIR-V compiled from shaders/trace.wgsl by
-//! build.rs, its descriptor set layout (bindings as listed in the shader's
-//! header) and pipeline layout.
+//! The trace compute pipelines: SPIR-V compiled from shaders/trace.wgsl by
+//! build.rs (one module per `Methods` variant), one descriptor set layout
+//! (bindings as listed in the shader's header) and pipeline layout, and a
+//! pipeline per (variant, entry point), built on first use and kept.
 
-use std::sync::Arc;
+use std::collections::HashMap;
+use std::ffi::CStr;
+use std::sync::{Arc, Mutex};
 
 use ash::vk;
 
 use super::context::{Context, Shared};
 use super::error::{GpuError, VkResultExt};
+use crate::methods::Methods;
 
-const TRACE_SPIRV: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/trace.spv"));
-const ENTRY_POINT: &std::ffi::CStr = c"render_tile";
+const TRACE_ROBUST: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/trace_robust.spv"));
+const TRACE_NAIVE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/trace_naive.spv"));
+
+/// The shader's entry points.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Kernel {
+    /// Colour, one texel per pixel.
+    Render,
+    /// (primitive, shadow mask, flags, t) per pixel.
+    ProbeTile,
+    /// One pixel's path record.
+    ProbePixel,
+}
+
+impl Kernel {
+    fn entry_point(self) -> &'static CStr {
+        match self {
+            Kernel::Render => c"render_tile",
+            Kernel::ProbeTile => c"probe_tile",
+            Kernel::ProbePixel => c"probe_pixel",
+        }
+    }
+}
+
+fn spirv(methods: Methods) -> &'static [u8] {
+    match methods {
+        Methods::Robust => TRACE_ROBUST,
+        Methods::Naive => TRACE_NAIVE,
+    }
+}
 
 /// Descriptor types of bindings 0.. of group 0, in the shader's order.
 pub const BINDINGS: [vk::DescriptorType; 9] = [
@@ -29,15 +61,14 @@ pub struct TracePipeline {
     shared: Arc<Shared>,
     pub(crate) set_layout: vk::DescriptorSetLayout,
     pub(crate) layout: vk::PipelineLayout,
-    pub(crate) pipeline: vk::Pipeline,
+    pipelines: Mutex<HashMap<(Methods, Kernel), vk::Pipeline>>,
 }
 
 impl TracePipeline {
+    /// The layouts; pipelines are built by `get`.
     pub fn new(ctx: &Context) -> Result<TracePipeline, GpuError> {
         let shared = ctx.shared.clone();
         let device = &shared.device;
-        let words = ash::util::read_spv(&mut std::io::Cursor::new(TRACE_SPIRV))
-            .expect("build.rs writes whole SPIR-V words");
         let bindings: Vec<_> = BINDINGS
             .iter()
             .enumerate()
@@ -55,7 +86,7 @@ impl TracePipeline {
             shared: shared.clone(),
             set_layout: vk::DescriptorSetLayout::null(),
             layout: vk::PipelineLayout::null(),
-            pipeline: vk::Pipeline::null(),
+            pipelines: Mutex::new(HashMap::new()),
         };
         // SAFETY: valid create infos on a live device; handles are owned by `p`.
         unsafe {
@@ -72,23 +103,40 @@ impl TracePipeline {
                     None,
                 )
                 .call("vkCreatePipelineLayout")?;
+        }
+        Ok(p)
+    }
+
+    /// The pipeline for `kernel` in the `methods` variant, built on first use.
+    pub fn get(&self, methods: Methods, kernel: Kernel) -> Result<vk::Pipeline, GpuError> {
+        let mut pipelines = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some(&p) = pipelines.get(&(methods, kernel)) {
+            return Ok(p);
+        }
+        let device = &self.shared.device;
+        let words = ash::util::read_spv(&mut std::io::Cursor::new(spirv(methods)))
+            .expect("build.rs writes whole SPIR-V words");
+        // SAFETY: valid create infos on a live device; the module is destroyed
+        // once the pipeline exists, the pipeline is owned by `self`.
+        let pipeline = unsafe {
             let module = device
                 .create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None)
                 .call("vkCreateShaderModule")?;
             let stage = vk::PipelineShaderStageCreateInfo::default()
                 .stage(vk::ShaderStageFlags::COMPUTE)
                 .module(module)
-                .name(ENTRY_POINT);
+                .name(kernel.entry_point());
             let info = vk::ComputePipelineCreateInfo::default()
                 .stage(stage)
-                .layout(p.layout);
+                .layout(self.layout);
             let created = device.create_compute_pipelines(vk::PipelineCache::null(), &[info], None);
             device.destroy_shader_module(module, None);
-            p.pipeline = created
+            created
                 .map_err(|(_, r)| r)
-                .call("vkCreateComputePipelines")?[0];
-        }
-        Ok(p)
+                .call("vkCreateComputePipelines")?[0]
+        };
+        pipelines.insert((methods, kernel), pipeline);
+        Ok(pipeline)
     }
 }
 
@@ -101,7 +149,10 @@ impl Drop for TracePipeline {
         // SAFETY: renders wait for their work before returning, so nothing
         // uses these handles; null handles are ignored by Vulkan.
         unsafe {
-            device.destroy_pipeline(self.pipeline, None);
+            let pipelines = self.pipelines.get_mut().unwrap_or_else(|e| e.into_inner());
+            for (_, p) in pipelines.drain() {
+                device.destroy_pipeline(p, None);
+            }
             device.destroy_pipeline_layout(self.layout, None);
             device.destroy_descriptor_set_layout(self.set_layout, None);
         }

@@ -15,10 +15,12 @@ use gpu_allocator::MemoryLocation;
 use super::buffer::Buffer;
 use super::context::{Context, Shared};
 use super::error::{GpuError, VkResultExt};
-use super::pipeline::{TracePipeline, BINDINGS};
+use super::pipeline::{Kernel, TracePipeline, BINDINGS};
 use crate::camera::Camera;
 use crate::framebuffer::Framebuffer;
-use crate::layout::{padded, GpuScene, GpuTile, WORKGROUP_SIZE};
+use crate::layout::{padded, GpuScene, GpuTile, PATH_HEADER, PATH_PER_LIGHT, WORKGROUP_SIZE};
+use crate::methods::Methods;
+use crate::probe::{PathRecord, ProbeImage};
 use crate::timing::Timings;
 
 /// Tiles in flight at once.
@@ -32,6 +34,8 @@ pub struct GpuRenderOptions {
     pub tile_size: u32,
     /// Longest wait for one tile before giving up with an error.
     pub tile_timeout: Duration,
+    /// Intersection and offset methods (robust unless measuring them).
+    pub methods: Methods,
 }
 
 impl Default for GpuRenderOptions {
@@ -44,8 +48,21 @@ impl Default for GpuRenderOptions {
             // GPU than 256^2 while keeping each submit short.
             tile_size: 512,
             tile_timeout: Duration::from_secs(60),
+            methods: Methods::Robust,
         }
     }
+}
+
+/// Most lights a `--pixel` path record lists (a 1 MiB output buffer).
+const PATH_MAX_LIGHTS: u32 = 21_000;
+
+/// What one run of the tile loop computes.
+#[derive(Clone, Copy, Debug)]
+enum Job {
+    /// `Kernel::Render` or `Kernel::ProbeTile` over the whole image.
+    Image(Kernel),
+    /// The path record of one pixel.
+    Pixel([u32; 2]),
 }
 
 /// A device with the trace pipeline built; renders any number of scenes.
@@ -101,6 +118,7 @@ impl GpuRenderer {
     pub fn new(ctx: &Context) -> Result<GpuRenderer, GpuError> {
         let start = Instant::now();
         let pipeline = TracePipeline::new(ctx)?;
+        pipeline.get(Methods::Robust, Kernel::Render)?;
         Ok(GpuRenderer {
             ctx: ctx.clone(),
             pipeline,
@@ -118,11 +136,80 @@ impl GpuRenderer {
         options: &GpuRenderOptions,
         progress: &(dyn Fn(u64, u64) + Sync),
     ) -> Result<(Framebuffer, Timings), GpuError> {
+        let job = Job::Image(Kernel::Render);
+        let (texels, timings) = self.run(scene, camera, background, options, job, progress)?;
+        let pixels = texels.iter().map(|t| [t[0], t[1], t[2]]).collect();
+        let fb = Framebuffer {
+            width: camera.width,
+            height: camera.height,
+            pixels,
+        };
+        Ok((fb, timings))
+    }
+
+    /// Each pixel's primary hit and shadow verdicts (the shader's `probe_tile`).
+    pub fn probe(
+        &self,
+        scene: &GpuScene,
+        camera: &Camera,
+        options: &GpuRenderOptions,
+    ) -> Result<ProbeImage, GpuError> {
+        let job = Job::Image(Kernel::ProbeTile);
+        let (texels, _) = self.run(scene, camera, [0.0; 3], options, job, &|_, _| {})?;
+        Ok(ProbeImage::from_texels(
+            camera.width,
+            camera.height,
+            &texels,
+        ))
+    }
+
+    /// The path of pixel (x, y) (the shader's `probe_pixel`).
+    pub fn pixel_path(
+        &self,
+        scene: &GpuScene,
+        camera: &Camera,
+        background: [f32; 3],
+        pixel: [u32; 2],
+        options: &GpuRenderOptions,
+    ) -> Result<PathRecord, GpuError> {
+        let job = Job::Pixel(pixel);
+        let (texels, _) = self.run(scene, camera, background, options, job, &|_, _| {})?;
+        Ok(PathRecord::from_texels(&texels))
+    }
+
+    fn run(
+        &self,
+        scene: &GpuScene,
+        camera: &Camera,
+        background: [f32; 3],
+        options: &GpuRenderOptions,
+        job: Job,
+        progress: &(dyn Fn(u64, u64) + Sync),
+    ) -> Result<(Vec<[f32; 4]>, Timings), GpuError> {
         let shared = &self.ctx.shared;
         let device = &shared.device;
         let mut timings = Timings::default();
         let tile_edge = options.tile_size.max(WORKGROUP_SIZE);
-        let tiles = tiles(camera.width, camera.height, tile_edge);
+        let (kernel, tiles, out_texels) = match job {
+            Job::Image(kernel) => (
+                kernel,
+                tiles(camera.width, camera.height, tile_edge),
+                u64::from(tile_edge) * u64::from(tile_edge),
+            ),
+            Job::Pixel(origin) => {
+                let lights = (scene.lights.len() as u32).min(PATH_MAX_LIGHTS);
+                let rect = TileRect {
+                    origin,
+                    size: [1, 1],
+                };
+                (
+                    Kernel::ProbePixel,
+                    vec![rect],
+                    u64::from(PATH_HEADER + PATH_PER_LIGHT * lights),
+                )
+            }
+        };
+        let pipeline = self.pipeline.get(options.methods, kernel)?;
 
         let mut pools = self.create_pools()?;
         let upload_start = Instant::now();
@@ -140,17 +227,16 @@ impl GpuRenderer {
                 (7, "primitive refs", padded(&scene.prim_refs)),
             ],
         )?;
-        let tile_bytes = u64::from(tile_edge) * u64::from(tile_edge) * TEXEL_BYTES;
+        let tile_bytes = out_texels * TEXEL_BYTES;
         let mut slots = Vec::with_capacity(SLOTS);
         for i in 0..SLOTS {
             slots.push(self.create_slot(&mut pools, i, tile_bytes, &scene_buffers)?);
         }
         timings.add("upload", upload_start.elapsed());
 
-        let mut fb = Framebuffer {
-            width: camera.width,
-            height: camera.height,
-            pixels: vec![[0.0; 3]; camera.width as usize * camera.height as usize],
+        let mut image = match job {
+            Job::Image(_) => vec![[0.0; 4]; camera.width as usize * camera.height as usize],
+            Job::Pixel(_) => vec![[0.0; 4]; out_texels as usize],
         };
         let mut in_flight: std::collections::VecDeque<(usize, TileRect)> = Default::default();
         let mut done = 0u64;
@@ -160,16 +246,16 @@ impl GpuRenderer {
         for (i, &rect) in tiles.iter().enumerate() {
             if in_flight.len() == SLOTS {
                 let (s, r) = in_flight.pop_front().expect("queue is full");
-                readback += self.finish_tile(&slots[s], r, &mut fb, options)?;
+                readback += self.finish_tile(&slots[s], r, job, &mut image, camera, options)?;
                 done += 1;
                 progress(done, tiles.len() as u64);
             }
             let slot = &mut slots[i % SLOTS];
-            self.submit_tile(slot, rect)?;
+            self.submit_tile(slot, pipeline, job, rect, out_texels)?;
             in_flight.push_back((i % SLOTS, rect));
         }
         while let Some((s, r)) = in_flight.pop_front() {
-            readback += self.finish_tile(&slots[s], r, &mut fb, options)?;
+            readback += self.finish_tile(&slots[s], r, job, &mut image, camera, options)?;
             done += 1;
             progress(done, tiles.len() as u64);
         }
@@ -178,7 +264,7 @@ impl GpuRenderer {
         timings.add("readback", readback);
         // SAFETY: all submitted work was waited for above.
         let _ = unsafe { device.device_wait_idle() };
-        Ok((fb, timings))
+        Ok((image, timings))
     }
 
     fn create_pools(&self) -> Result<Pools, GpuError> {
@@ -407,14 +493,31 @@ impl GpuRenderer {
         })
     }
 
-    fn submit_tile(&self, slot: &mut Slot, rect: TileRect) -> Result<(), GpuError> {
+    fn submit_tile(
+        &self,
+        slot: &mut Slot,
+        pipeline: vk::Pipeline,
+        job: Job,
+        rect: TileRect,
+        out_texels: u64,
+    ) -> Result<(), GpuError> {
         let shared = &self.ctx.shared;
         let device = &shared.device;
         slot.tile.write(bytemuck::bytes_of(&GpuTile {
             origin: rect.origin,
             size: rect.size,
         }));
-        let bytes = u64::from(rect.size[0]) * u64::from(rect.size[1]) * TEXEL_BYTES;
+        let (groups, texels) = match job {
+            Job::Image(_) => (
+                [
+                    rect.size[0].div_ceil(WORKGROUP_SIZE),
+                    rect.size[1].div_ceil(WORKGROUP_SIZE),
+                ],
+                u64::from(rect.size[0]) * u64::from(rect.size[1]),
+            ),
+            Job::Pixel(_) => ([1, 1], out_texels),
+        };
+        let bytes = texels * TEXEL_BYTES;
         // SAFETY: the slot's previous submission was waited for (finish_tile)
         // before this reuse; all handles are live.
         unsafe {
@@ -429,11 +532,7 @@ impl GpuRenderer {
                         .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
                 )
                 .call("vkBeginCommandBuffer")?;
-            device.cmd_bind_pipeline(
-                slot.command,
-                vk::PipelineBindPoint::COMPUTE,
-                self.pipeline.pipeline,
-            );
+            device.cmd_bind_pipeline(slot.command, vk::PipelineBindPoint::COMPUTE, pipeline);
             device.cmd_bind_descriptor_sets(
                 slot.command,
                 vk::PipelineBindPoint::COMPUTE,
@@ -442,12 +541,7 @@ impl GpuRenderer {
                 &[slot.set],
                 &[],
             );
-            device.cmd_dispatch(
-                slot.command,
-                rect.size[0].div_ceil(WORKGROUP_SIZE),
-                rect.size[1].div_ceil(WORKGROUP_SIZE),
-                1,
-            );
+            device.cmd_dispatch(slot.command, groups[0], groups[1], 1);
             let to_copy = vk::MemoryBarrier::default()
                 .src_access_mask(vk::AccessFlags::SHADER_WRITE)
                 .dst_access_mask(vk::AccessFlags::TRANSFER_READ);
@@ -494,12 +588,14 @@ impl GpuRenderer {
         Ok(())
     }
 
-    /// Waits for a tile and copies it into `fb`; returns the copy time.
+    /// Waits for a tile and copies it into `image`; returns the copy time.
     fn finish_tile(
         &self,
         slot: &Slot,
         rect: TileRect,
-        fb: &mut Framebuffer,
+        job: Job,
+        image: &mut [[f32; 4]],
+        camera: &Camera,
         options: &GpuRenderOptions,
     ) -> Result<Duration, GpuError> {
         let timeout = options.tile_timeout.as_nanos().min(u128::from(u64::MAX)) as u64;
@@ -513,17 +609,16 @@ impl GpuRenderer {
         .map_err(|r| self.fail(r, rect, "vkWaitForFences", options.tile_timeout.as_secs()))?;
         let start = Instant::now();
         let texels: &[[f32; 4]] = bytemuck::cast_slice(slot.readback.mapped());
+        if let Job::Pixel(_) = job {
+            image.copy_from_slice(&texels[..image.len()]);
+            return Ok(start.elapsed());
+        }
         let [x0, y0] = rect.origin;
         let [w, h] = rect.size;
         for row in 0..h {
             let src = &texels[(row * w) as usize..((row + 1) * w) as usize];
-            let start_px = ((y0 + row) * fb.width + x0) as usize;
-            for (dst, s) in fb.pixels[start_px..start_px + w as usize]
-                .iter_mut()
-                .zip(src)
-            {
-                *dst = [s[0], s[1], s[2]];
-            }
+            let start_px = ((y0 + row) * camera.width + x0) as usize;
+            image[start_px..start_px + w as usize].copy_from_slice(src);
         }
         Ok(start.elapsed())
     }

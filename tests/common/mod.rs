@@ -132,7 +132,15 @@ pub fn render_cpu(
     bg: [f32; 3],
 ) -> Framebuffer {
     let bvh = Bvh::build(scene);
-    glint::cpu::render(scene, &bvh, &Camera::new(w, h), bg, precision, &|_, _| {})
+    glint::cpu::render(
+        scene,
+        &bvh,
+        &Camera::new(w, h),
+        bg,
+        precision,
+        glint::methods::Methods::Robust,
+        &|_, _| {},
+    )
 }
 
 /// Renders on the GPU and asserts the validation layer stayed silent.
