@@ -270,3 +270,147 @@ mod tests {
         assert!(Stat::of(vec![]).is_none());
     }
 }
+
+#[derive(Clone, Debug)]
+pub struct HardOptions {
+    pub gpu: bool,
+    pub device: Option<DeviceSelector>,
+    /// Renders per timing (median).
+    pub repeat: usize,
+    /// Also time robust vs naive methods.
+    pub timing: bool,
+}
+
+pub struct HardReport {
+    /// Counts table, then (with timing) the cost table, in markdown.
+    pub markdown: String,
+    /// Checked counts that are not zero with the robust methods.
+    pub robust_failures: usize,
+}
+
+/// The hard-case suite (`glint bench hard`): failure counts for every case on
+/// every backend with robust and naive methods, and the render time of each
+/// methods variant on SIGGRAPH (when the classic scenes are present) and on
+/// the `quad_grid` hard case.
+pub fn run_hard(
+    options: &HardOptions,
+    progress: &mut dyn FnMut(&str),
+) -> Result<HardReport, Error> {
+    use crate::hard;
+    let mut out = String::new();
+    let renderer = if options.gpu {
+        let ctx = Context::new(&ContextOptions {
+            device: options.device.clone(),
+            validation: false,
+        })?;
+        let _ = writeln!(out, "GPU: {} ({})", ctx.info().name, ctx.info().driver);
+        Some(GpuRenderer::new(&ctx)?)
+    } else {
+        None
+    };
+    let _ = writeln!(
+        out,
+        "CPU reference: {} threads. Counts are pixels, against the CPU f64 reference with \
+         robust methods; `-`: not checked for that case.\n",
+        rayon::current_num_threads()
+    );
+    let rows = hard::run(renderer.as_ref(), &Methods::ALL, progress)?;
+    let robust_failures = rows
+        .iter()
+        .filter(|r| r.methods == Methods::Robust)
+        .map(|r| r.failures().len())
+        .sum();
+    out.push_str(&hard::to_markdown(&rows, &Methods::ALL));
+    if options.timing {
+        let mut subjects: Vec<(String, crate::scene::Scene, Camera)> = Vec::new();
+        let classic = std::path::Path::new(CLASSIC_DIR).join("SIGGRAPH.scene");
+        if classic.is_file() {
+            subjects.push((
+                "SIGGRAPH".into(),
+                read_scene(&classic)?,
+                Camera::new(640, 480),
+            ));
+        } else {
+            progress(&format!("{CLASSIC_DIR} not found: SIGGRAPH timing skipped"));
+        }
+        if let Some(case) = hard::cases().into_iter().find(|c| c.name == "quad_grid") {
+            let camera = case.camera();
+            subjects.push((case.name, case.scene, camera));
+        }
+        let _ = writeln!(
+            out,
+            "\nRender time, median of {} (min-max), milliseconds:\n",
+            options.repeat
+        );
+        let _ = writeln!(out, "| scene | backend | robust | naive | robust / naive |");
+        let _ = writeln!(out, "|---|---|---:|---:|---:|");
+        for (name, scene, camera) in &subjects {
+            let bvh = Bvh::build(scene);
+            let packed = GpuScene::pack(scene, &bvh);
+            let bg = [1.0; 3];
+            let mut stats = Vec::new();
+            for backend in ["GPU", "CPU f32"] {
+                if backend == "GPU" && renderer.is_none() {
+                    continue;
+                }
+                let mut per = Vec::new();
+                // Interleaved so that drift (thermal, other load) hits both alike.
+                let mut samples = [Vec::new(), Vec::new()];
+                for i in 0..=options.repeat {
+                    for (k, &methods) in Methods::ALL.iter().enumerate() {
+                        let start = Instant::now();
+                        if let Some(r) = renderer.as_ref().filter(|_| backend == "GPU") {
+                            let opts = GpuRenderOptions {
+                                methods,
+                                ..Default::default()
+                            };
+                            r.render(&packed, camera, bg, &opts, &|_, _| {})?;
+                        } else {
+                            cpu::render(
+                                scene,
+                                &bvh,
+                                camera,
+                                bg,
+                                Precision::F32,
+                                methods,
+                                &|_, _| {},
+                            );
+                        }
+                        // The first round warms caches and lazy compiles.
+                        if i > 0 {
+                            samples[k].push(start.elapsed());
+                        }
+                    }
+                }
+                for s in samples {
+                    per.push(Stat::of(s).expect("repeat >= 1"));
+                }
+                progress(&format!("{name}: {backend} timed"));
+                stats.push((backend, per));
+            }
+            for (backend, per) in stats {
+                let cell = |s: &Stat| {
+                    format!(
+                        "{:.1} ({:.1}-{:.1})",
+                        s.median.as_secs_f64() * 1e3,
+                        s.min.as_secs_f64() * 1e3,
+                        s.max.as_secs_f64() * 1e3
+                    )
+                };
+                let ratio = per[0].median.as_secs_f64() / per[1].median.as_secs_f64();
+                let _ = writeln!(
+                    out,
+                    "| {name} ({}x{}) | {backend} | {} | {} | {ratio:.2} |",
+                    camera.width,
+                    camera.height,
+                    cell(&per[0]),
+                    cell(&per[1])
+                );
+            }
+        }
+    }
+    Ok(HardReport {
+        markdown: out,
+        robust_failures,
+    })
+}

@@ -28,6 +28,11 @@ pub enum Error {
     UnsupportedImageFormat(PathBuf),
     #[error("images differ in size: {0}x{1} vs {2}x{3}")]
     SizeMismatch(u32, u32, u32, u32),
+    #[error("cannot write {path}: {source}")]
+    WriteFile {
+        path: PathBuf,
+        source: std::io::Error,
+    },
     #[error("invalid option: {0}")]
     InvalidOption(String),
 }

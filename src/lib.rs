@@ -17,6 +17,7 @@ pub mod cpu;
 mod error;
 pub mod framebuffer;
 pub mod gpu;
+pub mod hard;
 pub mod info;
 pub mod layout;
 pub mod methods;

@@ -1,12 +1,47 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use clap::Args;
+use clap::{Args, Subcommand};
 use glint::bench::{default_scenes, run as run_bench, BenchOptions};
 use glint::gpu::DeviceSelector;
 
 #[derive(Args, Debug)]
+#[command(args_conflicts_with_subcommands = true)]
 pub struct BenchArgs {
+    #[command(subcommand)]
+    command: Option<BenchCommand>,
+    #[command(flatten)]
+    scenes: SceneArgs,
+}
+
+#[derive(Subcommand, Debug)]
+enum BenchCommand {
+    /// The hard-case suite (scenes/hard): failure counts per case, backend and
+    /// methods, and what the robust methods cost in time.
+    Hard(HardArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct HardArgs {
+    /// Renders per timing; the report gives the median.
+    #[arg(long, default_value_t = 7, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    repeat: u32,
+    /// Skip the GPU.
+    #[arg(long)]
+    no_gpu: bool,
+    /// Vulkan device by index or name (see `glint devices`).
+    #[arg(long)]
+    device: Option<String>,
+    /// Counts only, no timings.
+    #[arg(long)]
+    no_timing: bool,
+    /// Write the suite's scene files into DIR (default scenes/hard) and exit.
+    #[arg(long, value_name = "DIR", num_args = 0..=1, default_missing_value = glint::hard::SCENE_DIR)]
+    write_scenes: Option<PathBuf>,
+}
+
+#[derive(Args, Debug)]
+pub struct SceneArgs {
     /// Scene files; default: the classic scenes in ../shared/scenes/classic
     /// (when present) and every scene in scenes/.
     scenes: Vec<PathBuf>,
@@ -32,6 +67,37 @@ pub struct BenchArgs {
 }
 
 pub fn run(args: BenchArgs) -> anyhow::Result<ExitCode> {
+    match args.command {
+        Some(BenchCommand::Hard(hard)) => run_hard(hard),
+        None => run_scenes(args.scenes),
+    }
+}
+
+fn run_hard(args: HardArgs) -> anyhow::Result<ExitCode> {
+    if let Some(dir) = args.write_scenes {
+        let written = glint::hard::write_scenes(&dir)?;
+        println!("wrote {written} scenes to {}", dir.display());
+        return Ok(ExitCode::SUCCESS);
+    }
+    let options = glint::bench::HardOptions {
+        gpu: !args.no_gpu,
+        device: args.device.as_deref().map(DeviceSelector::parse),
+        repeat: args.repeat as usize,
+        timing: !args.no_timing,
+    };
+    let report = glint::bench::run_hard(&options, &mut |line| eprintln!("{line}"))?;
+    println!("{}", report.markdown);
+    if report.robust_failures > 0 {
+        eprintln!(
+            "error: {} checked count(s) are not zero with the robust methods (bold above)",
+            report.robust_failures
+        );
+        return Ok(ExitCode::FAILURE);
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn run_scenes(args: SceneArgs) -> anyhow::Result<ExitCode> {
     let scenes = if args.scenes.is_empty() {
         default_scenes(&mut |note| eprintln!("note: {note}"))
     } else {

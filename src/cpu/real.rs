@@ -82,7 +82,9 @@ pub trait Real:
     fn vabs(v: Self::V3) -> Self::V3;
 
     /// Moves `p` off its surface along `n` by whole ulps (Ray Tracing Gems ch. 6).
-    fn offset_ray(p: Self::V3, n: Self::V3) -> Self::V3;
+    /// `scale`: per-axis magnitude of the coordinates `p` came from.
+    fn offset_ray(p: Self::V3, n: Self::V3, scale: Self::V3) -> Self::V3;
+    fn vmax3(a: Self::V3, b: Self::V3, c: Self::V3) -> Self::V3;
 }
 
 macro_rules! impl_real {
@@ -172,8 +174,11 @@ macro_rules! impl_real {
             fn vabs(v: $v) -> $v {
                 v.abs()
             }
-            fn offset_ray(p: $v, n: $v) -> $v {
-                let off = |p: $t, n: $t| -> $t {
+            fn vmax3(a: $v, b: $v, c: $v) -> $v {
+                a.max(b).max(c)
+            }
+            fn offset_ray(p: $v, n: $v, scale: $v) -> $v {
+                let off = |p: $t, n: $t, scale: $t| -> $t {
                     // Truncation toward zero, as the shader's vec3<i32>(f32).
                     let of_i = (Self::OFFSET_INT_SCALE * n) as $i;
                     let bits = p.to_bits() as $i;
@@ -182,13 +187,17 @@ macro_rules! impl_real {
                     } else {
                         bits.wrapping_add(of_i)
                     };
-                    if p.abs() < Self::OFFSET_ORIGIN {
-                        p + Self::OFFSET_FLOAT_SCALE * n
+                    if p.abs() < Self::OFFSET_ORIGIN * scale {
+                        p + Self::OFFSET_FLOAT_SCALE * scale * n
                     } else {
                         <$t>::from_bits(moved as _)
                     }
                 };
-                <$v>::new(off(p.x, n.x), off(p.y, n.y), off(p.z, n.z))
+                <$v>::new(
+                    off(p.x, n.x, scale.x),
+                    off(p.y, n.y, scale.y),
+                    off(p.z, n.z, scale.z),
+                )
             }
         }
     };

@@ -404,9 +404,9 @@ pub fn occluder<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>) -> Hit<R> {
     traverse(scene, ray, R::ONE, true)
 }
 
-pub fn offset_ray<R: Real>(scene: &CpuScene<R>, p: R::V3, n: R::V3) -> R::V3 {
+pub fn offset_ray<R: Real>(scene: &CpuScene<R>, p: R::V3, n: R::V3, scale: R::V3) -> R::V3 {
     match scene.methods {
-        Methods::Robust => R::offset_ray(p, n),
+        Methods::Robust => R::offset_ray(p, n, scale),
         Methods::Naive => p + n * R::NAIVE_OFFSET,
     }
 }
@@ -435,6 +435,7 @@ pub struct SurfacePoint<R: Real> {
     pub p: R::V3,
     pub n: R::V3,
     pub ng: R::V3,
+    pub scale: R::V3,
     pub kd: R::V3,
     pub ks: R::V3,
     pub shininess: R,
@@ -450,6 +451,7 @@ pub fn surface_point<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>, hit: &Hit<R>) -
             p,
             n,
             ng: n,
+            scale: R::vabs(s.center) + R::v3(s.radius, s.radius, s.radius),
             kd: s.kd,
             ks: s.ks,
             shininess: s.shininess,
@@ -473,6 +475,7 @@ pub fn surface_point<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>, hit: &Hit<R>) -
         p,
         n,
         ng,
+        scale: R::vmax3(R::vabs(tri[0]), R::vabs(tri[1]), R::vabs(tri[2])),
         kd: s[0].kd * w[0] + s[1].kd * w[1] + s[2].kd * w[2],
         ks: s[0].ks * w[0] + s[1].ks * w[1] + s[2].ks * w[2],
         shininess: w[0] * s[0].shininess + w[1] * s[1].shininess + w[2] * s[2].shininess,
@@ -501,7 +504,7 @@ pub fn light_term<R: Real>(
     } else {
         -sp.ng
     };
-    let origin = offset_ray(scene, sp.p, side);
+    let origin = offset_ray(scene, sp.p, side, sp.scale);
     let zero = R::v3(R::ZERO, R::ZERO, R::ZERO);
     let mut term = LightTerm {
         origin,

@@ -5,8 +5,10 @@
 //! them to f32 once, in one place each.
 
 mod parse;
+mod write;
 
 pub use parse::{parse_scene, read_scene, Diagnostic, ParseError};
+pub use write::to_classic_text;
 
 use glam::DVec3;
 
@@ -127,5 +129,24 @@ impl Scene {
 
     pub fn primitive_count(&self) -> usize {
         self.spheres.len() + self.triangles.len()
+    }
+
+    /// The scene scaled by `factor` about the camera (the origin): positions,
+    /// radii and light positions; the image is unchanged in exact arithmetic.
+    pub fn scaled(&self, factor: f64) -> Scene {
+        let mut s = self.clone();
+        for sphere in &mut s.spheres {
+            sphere.center *= factor;
+            sphere.radius *= factor;
+        }
+        for t in &mut s.triangles {
+            for v in &mut t.vertices {
+                v.position *= factor;
+            }
+        }
+        for l in &mut s.lights {
+            l.position *= factor;
+        }
+        s
     }
 }

@@ -204,6 +204,9 @@ impl<'a> Parser<'a> {
     }
 
     fn triangle(&mut self) -> PResult<Triangle> {
+        // The classic files' normals are unit to within 2e-5; anything
+        // further off was not meant to be interpolated as written.
+        const NORMAL_LENGTH_TOLERANCE: f64 = 1e-3;
         let mut vertices = [Vertex {
             position: DVec3::ZERO,
             normal: DVec3::ZERO,
@@ -226,6 +229,22 @@ impl<'a> Parser<'a> {
                     Some("where all three are zero the flat (geometric) normal is used"),
                 );
                 self.scene.warnings.push(d);
+            } else if (v.normal.length() - 1.0).abs() > NORMAL_LENGTH_TOLERANCE
+                || !v.normal.length().is_finite()
+            {
+                // Interpolating unnormalized normals would weight the corners
+                // by their lengths; a 1e30 normal would also overflow f32.
+                let d = self.diagnostic(
+                    &nor,
+                    format!(
+                        "vertex normal has length {:e}, not 1: glint renormalizes it",
+                        v.normal.length()
+                    ),
+                    Some("write unit normals to silence this warning"),
+                );
+                self.scene.warnings.push(d);
+                // Scaled first so that even 1e300 has a finite length.
+                v.normal = (v.normal / v.normal.abs().max_element()).normalize();
             }
             v.material = self.material()?;
         }
@@ -279,6 +298,12 @@ impl<'a> Parser<'a> {
             .ok()
             .and_then(|s| s.parse::<f64>().ok());
         match value {
+            // The GPU computes in f32: a larger value would arrive there as
+            // infinity.
+            Some(v) if v.is_finite() && v.abs() > f64::from(f32::MAX) => Err(self.expected(
+                &tok,
+                &format!("a number of magnitude at most 3.4e38, the f32 limit ({what})"),
+            )),
             Some(v) if v.is_finite() => Ok((v, tok)),
             Some(_) => Err(self.expected(&tok, &format!("a finite number ({what})"))),
             None => Err(self.expected(&tok, &format!("a number ({what})"))),

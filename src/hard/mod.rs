@@ -1,0 +1,247 @@
+//! The hard-case suite: scenes that break naive ray tracers (cracks between
+//! triangles, shadow acne, light leaking at contact, cancellation in small
+//! far spheres, undefined maths), and the counts that show whether a backend
+//! survives them.
+//!
+//! `cases` generates the scenes (also written to `scenes/hard/`); `metrics`
+//! counts failures against the CPU f64 reference; `run` measures every case on
+//! every backend and both `Methods`, for `glint bench hard` and the tests.
+
+mod cases;
+pub mod metrics;
+
+use std::fmt::Write as _;
+use std::time::{Duration, Instant};
+
+use crate::bvh::Bvh;
+use crate::camera::Camera;
+use crate::cpu::{self, Precision};
+use crate::gpu::{GpuRenderOptions, GpuRenderer};
+use crate::layout::GpuScene;
+use crate::methods::Methods;
+use crate::probe::ProbeImage;
+use crate::scene::{parse_scene, to_classic_text, Scene};
+use crate::Error;
+pub use metrics::{count, Counts, Metric};
+
+/// Where the suite's scene files live, relative to the repository root.
+pub const SCENE_DIR: &str = "scenes/hard";
+
+pub struct Case {
+    pub name: String,
+    /// One line: what makes it hard.
+    pub what: String,
+    /// The scene file's text (`scenes/hard/<name>.scene`).
+    pub text: String,
+    /// As parsed from `text` (so normals are renormalized and warnings
+    /// recorded exactly as for the file).
+    pub scene: Scene,
+    pub width: u32,
+    pub height: u32,
+    /// The counts that must be zero with the robust methods.
+    pub checks: Vec<Metric>,
+}
+
+impl Case {
+    pub fn camera(&self) -> Camera {
+        Camera::new(self.width, self.height)
+    }
+
+    /// The command that prints pixel (x, y)'s path in this case.
+    pub fn pixel_command(&self, [x, y]: [u32; 2]) -> String {
+        format!(
+            "glint render {SCENE_DIR}/{}.scene --width {} --height {} --pixel {x},{y}",
+            self.name, self.width, self.height
+        )
+    }
+
+    /// The ground truth: the CPU reference in f64 with the robust methods.
+    pub fn reference(&self) -> ProbeImage {
+        let bvh = Bvh::build(&self.scene);
+        cpu::probe(
+            &self.scene,
+            &bvh,
+            &self.camera(),
+            Precision::F64,
+            Methods::Robust,
+        )
+    }
+}
+
+/// Every case, in a fixed order.
+pub fn cases() -> Vec<Case> {
+    cases::all()
+        .into_iter()
+        .map(|mut c| {
+            c.text = to_classic_text(&c.scene);
+            c.scene = parse_scene(c.text.as_bytes(), &format!("{SCENE_DIR}/{}.scene", c.name))
+                .expect("generated hard-case scenes parse");
+            c
+        })
+        .collect()
+}
+
+/// Writes every case's scene file into `dir` (created if missing); returns
+/// how many. Each file is written whole to a temporary name, then renamed.
+pub fn write_scenes(dir: &std::path::Path) -> Result<usize, Error> {
+    let io = |path: &std::path::Path, source: std::io::Error| Error::WriteFile {
+        path: path.to_path_buf(),
+        source,
+    };
+    std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
+    let cases = cases();
+    for c in &cases {
+        let path = dir.join(format!("{}.scene", c.name));
+        let tmp = dir.join(format!(".{}.scene.tmp", c.name));
+        std::fs::write(&tmp, &c.text).map_err(|e| io(&tmp, e))?;
+        std::fs::rename(&tmp, &path).map_err(|e| io(&path, e))?;
+    }
+    Ok(cases.len())
+}
+
+/// What rendered a probe image.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Runner {
+    Gpu,
+    CpuF32,
+}
+
+impl Runner {
+    pub fn name(self) -> &'static str {
+        match self {
+            Runner::Gpu => "GPU",
+            Runner::CpuF32 => "CPU f32",
+        }
+    }
+}
+
+/// Probes `case` on `runner` with `methods`; also returns the time taken.
+pub fn probe(
+    case: &Case,
+    runner: Runner,
+    methods: Methods,
+    gpu: Option<&GpuRenderer>,
+) -> Result<(ProbeImage, Duration), Error> {
+    let bvh = Bvh::build(&case.scene);
+    let camera = case.camera();
+    let start = Instant::now();
+    let image = match runner {
+        Runner::Gpu => {
+            let gpu =
+                gpu.ok_or_else(|| Error::InvalidOption("no GPU for the GPU runner".into()))?;
+            let options = GpuRenderOptions {
+                methods,
+                ..Default::default()
+            };
+            gpu.probe(&GpuScene::pack(&case.scene, &bvh), &camera, &options)?
+        }
+        Runner::CpuF32 => cpu::probe(&case.scene, &bvh, &camera, Precision::F32, methods),
+    };
+    Ok((image, start.elapsed()))
+}
+
+/// One row of the suite's report.
+pub struct Row {
+    pub case: String,
+    pub runner: Runner,
+    pub methods: Methods,
+    pub counts: Counts,
+    pub checks: Vec<Metric>,
+}
+
+impl Row {
+    /// The checked counts that are not zero.
+    pub fn failures(&self) -> Vec<(Metric, usize)> {
+        self.checks
+            .iter()
+            .map(|&m| (m, self.counts.get(m)))
+            .filter(|&(_, n)| n > 0)
+            .collect()
+    }
+}
+
+/// Runs every case on the GPU (when given) and the CPU f32 reference, with
+/// each of `methods`; `progress` gets a line per case.
+pub fn run(
+    gpu: Option<&GpuRenderer>,
+    methods: &[Methods],
+    progress: &mut dyn FnMut(&str),
+) -> Result<Vec<Row>, Error> {
+    let mut rows = Vec::new();
+    let runners: Vec<Runner> = gpu
+        .map(|_| Runner::Gpu)
+        .into_iter()
+        .chain([Runner::CpuF32])
+        .collect();
+    for case in cases() {
+        let reference = case.reference();
+        for &m in methods {
+            for &runner in &runners {
+                let (image, _) = probe(&case, runner, m, gpu)?;
+                rows.push(Row {
+                    case: case.name.clone(),
+                    runner,
+                    methods: m,
+                    counts: count(&image, &reference),
+                    checks: case.checks.clone(),
+                });
+            }
+        }
+        progress(&format!("{}: done", case.name));
+    }
+    Ok(rows)
+}
+
+/// A markdown table: one line per case and runner, a column per metric,
+/// each cell `robust / naive` (for the methods run). A count the case checks
+/// is plain, and bold when not zero; one it does not check is in parentheses.
+pub fn to_markdown(rows: &[Row], methods: &[Methods]) -> String {
+    let mut out = String::new();
+    let names: Vec<&str> = methods.iter().map(|m| m.name()).collect();
+    let _ = write!(out, "| case | backend |");
+    for metric in Metric::ALL {
+        let _ = write!(out, " {metric} |");
+    }
+    let _ = writeln!(out);
+    let _ = write!(out, "|---|---|");
+    for _ in Metric::ALL {
+        out.push_str("---:|");
+    }
+    let _ = writeln!(out);
+    let mut keys: Vec<(String, Runner)> = Vec::new();
+    for r in rows {
+        if !keys.contains(&(r.case.clone(), r.runner)) {
+            keys.push((r.case.clone(), r.runner));
+        }
+    }
+    for (case, runner) in keys {
+        let _ = write!(out, "| {case} | {} |", runner.name());
+        for metric in Metric::ALL {
+            let cells: Vec<String> = methods
+                .iter()
+                .map(|&m| {
+                    let row = rows
+                        .iter()
+                        .find(|r| r.case == case && r.runner == runner && r.methods == m);
+                    match row {
+                        Some(r) => {
+                            let n = r.counts.get(metric);
+                            if !r.checks.contains(&metric) {
+                                format!("({n})")
+                            } else if n > 0 {
+                                format!("**{n}**")
+                            } else {
+                                "0".into()
+                            }
+                        }
+                        None => "?".into(),
+                    }
+                })
+                .collect();
+            let _ = write!(out, " {} |", cells.join(" / "));
+        }
+        let _ = writeln!(out);
+    }
+    let _ = writeln!(out, "\nEach cell: {}.", names.join(" / "));
+    out
+}

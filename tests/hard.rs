@@ -1,0 +1,234 @@
+//! The hard-case suite (src/hard, scenes/hard): every case on the GPU and the
+//! CPU f32 reference, against the CPU f64 reference; the counts each case
+//! checks must be zero. Also: the scene files match their generator, the
+//! naive methods fail the same suite (so it can fail), and classic scenes
+//! scaled about the camera render the same image.
+
+mod common;
+
+use common::{gpu, repo_path};
+use glint::bvh::Bvh;
+use glint::camera::Camera;
+use glint::compare::compare_framebuffers;
+use glint::cpu::Precision;
+use glint::hard::{self, count, metrics::failing_pixels, Case, Metric, Runner};
+use glint::methods::Methods;
+
+fn case(name: &str) -> Case {
+    hard::cases()
+        .into_iter()
+        .find(|c| c.name == name)
+        .unwrap_or_else(|| panic!("no hard case {name}"))
+}
+
+/// Probes `name` on each backend and asserts its checked counts are zero,
+/// listing the first failing pixels with the command that explains each.
+fn check(name: &str) {
+    let case = case(name);
+    let reference = case.reference();
+    let gpu = gpu().map(|g| g.lock().unwrap_or_else(|e| e.into_inner()));
+    let mut runners = vec![Runner::CpuF32];
+    if gpu.is_some() {
+        runners.insert(0, Runner::Gpu);
+    }
+    let mut failures = Vec::new();
+    for runner in runners {
+        let before = gpu.as_ref().map_or(0, |g| g.ctx.validation_messages());
+        let (image, _) = hard::probe(
+            &case,
+            runner,
+            Methods::Robust,
+            gpu.as_ref().map(|g| &g.renderer),
+        )
+        .expect("probe runs");
+        if let Some(g) = &gpu {
+            assert_eq!(
+                g.ctx.validation_messages(),
+                before,
+                "Vulkan validation messages"
+            );
+        }
+        let counts = count(&image, &reference);
+        let shown: Vec<String> = Metric::ALL
+            .iter()
+            .map(|&m| format!("{m} {}", counts.get(m)))
+            .collect();
+        eprintln!("{name} on {}: {}", runner.name(), shown.join(", "));
+        for &m in &case.checks {
+            let pixels = failing_pixels(&image, &reference, m);
+            if !pixels.is_empty() {
+                let first: Vec<String> = pixels
+                    .iter()
+                    .take(5)
+                    .map(|&p| format!("\n    {}", case.pixel_command(p)))
+                    .collect();
+                failures.push(format!(
+                    "{} {m} pixels on {}; first:{}",
+                    pixels.len(),
+                    runner.name(),
+                    first.concat()
+                ));
+            }
+        }
+    }
+    assert!(
+        failures.is_empty(),
+        "{name} ({}):\n  {}",
+        case.what,
+        failures.join("\n  ")
+    );
+}
+
+macro_rules! cases {
+    ($($test:ident => $name:literal),* $(,)?) => {
+        $(#[test] fn $test() { check($name); })*
+
+        #[test]
+        fn every_case_has_a_test() {
+            let tested = [$($name),*];
+            for c in hard::cases() {
+                assert!(tested.contains(&c.name.as_str()), "hard case {} has no test", c.name);
+            }
+        }
+    };
+}
+
+cases! {
+    sphere_inside => "sphere_inside",
+    quad_grid => "quad_grid",
+    vertex_rays => "vertex_rays",
+    grazing => "grazing",
+    far_spheres => "far_spheres",
+    acne_scale_1e_3 => "acne_scale_1e-3",
+    acne_scale_1 => "acne_scale_1",
+    acne_scale_1e3 => "acne_scale_1e3",
+    acne_offset_1e3 => "acne_offset_1e3",
+    acne_offset_1e4 => "acne_offset_1e4",
+    contact_box => "contact_box",
+    contact_box_1e_3 => "contact_box_1e-3",
+    lights_on_surfaces => "lights_on_surfaces",
+    camera_inside_sphere => "camera_inside_sphere",
+    shininess_extremes => "shininess_extremes",
+    hundred_lights => "hundred_lights",
+    degenerate_triangles => "degenerate_triangles",
+    bvh_faces => "bvh_faces",
+}
+
+/// The scene files `glint bench hard --write-scenes` writes parse back to
+/// the scenes the suite renders, with the parser's warnings for the inputs
+/// that deserve one.
+#[test]
+fn written_scene_files_parse_to_the_suite() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let written = hard::write_scenes(dir.path()).expect("write scenes");
+    let cases = hard::cases();
+    assert_eq!(written, cases.len());
+    for c in &cases {
+        let path = dir.path().join(format!("{}.scene", c.name));
+        let parsed = glint::scene::read_scene(&path).expect("written scene parses");
+        assert_eq!(parsed.spheres, c.scene.spheres, "{}", c.name);
+        assert_eq!(parsed.triangles, c.scene.triangles, "{}", c.name);
+        assert_eq!(parsed.lights, c.scene.lights, "{}", c.name);
+    }
+    let degenerate = cases
+        .iter()
+        .find(|c| c.name == "degenerate_triangles")
+        .expect("case exists");
+    let text: Vec<String> = degenerate
+        .scene
+        .warnings
+        .iter()
+        .map(|w| w.to_string())
+        .collect();
+    assert!(
+        text.iter().any(|w| w.contains("zero-length vertex normal")),
+        "{text:?}"
+    );
+    assert!(text.iter().any(|w| w.contains("length 1e30")), "{text:?}");
+}
+
+/// The suite can fail: the textbook methods, on the CPU f32 twin of the
+/// shader, fail the counts the robust methods pass.
+#[test]
+fn naive_methods_fail_the_suite() {
+    let expect = [
+        ("vertex_rays", Metric::Crack),
+        ("acne_scale_1e3", Metric::Acne),
+        ("acne_offset_1e4", Metric::Acne),
+        ("contact_box_1e-3", Metric::Leak),
+        ("acne_offset_1e3", Metric::Speckle),
+        ("acne_scale_1e-3", Metric::Crack),
+    ];
+    for (name, metric) in expect {
+        let c = case(name);
+        let (image, _) = hard::probe(&c, Runner::CpuF32, Methods::Naive, None).expect("CPU probe");
+        let n = count(&image, &c.reference()).get(metric);
+        eprintln!("{name}, naive methods: {n} {metric} pixels");
+        assert!(
+            n > 0,
+            "{name}: naive methods show no {metric}; the case lost its edge"
+        );
+    }
+}
+
+/// Scenes scaled about the camera by 1e-3, 1e3 and 1e4 render the image of
+/// the unscaled scene on each backend, within the GPU-vs-CPU test's tolerance
+/// (0.25 levels; at most 5e-5 of the pixels over it).
+#[test]
+fn scale_invariance() {
+    let mut scenes = vec![(
+        "showcase".to_string(),
+        glint::scene::read_scene(&repo_path("scenes/showcase.scene")).expect("showcase parses"),
+    )];
+    if common::classic_dir().is_some() {
+        for name in common::CLASSIC {
+            scenes.push((
+                name.to_string(),
+                common::classic_scene(name).expect("classic"),
+            ));
+        }
+    }
+    let (w, h) = (320, 240);
+    let allowed = (5e-5 * f64::from(w * h)).floor() as usize;
+    for (name, scene) in &scenes {
+        let base_gpu = common::render_gpu(scene, w, h, common::WHITE);
+        let base_cpu = common::render_cpu(scene, w, h, Precision::F32, common::WHITE);
+        for factor in [1e-3, 1e3, 1e4] {
+            let scaled = scene.scaled(factor);
+            let label = format!("{name}-scaled-{factor:e}");
+            let cpu = common::render_cpu(&scaled, w, h, Precision::F32, common::WHITE);
+            let cmp = compare_framebuffers(&cpu, &base_cpu, 0.25).expect("same size");
+            common::assert_within(&format!("{label}-cpu"), &cpu, &base_cpu, &cmp, allowed);
+            if let (Some(base), Some(img)) =
+                (&base_gpu, common::render_gpu(&scaled, w, h, common::WHITE))
+            {
+                let cmp = compare_framebuffers(&img, base, 0.25).expect("same size");
+                common::assert_within(&format!("{label}-gpu"), &img, base, &cmp, allowed);
+            }
+        }
+    }
+}
+
+/// A ray with NaN in it (never formed by the renderer, but guarded against)
+/// ends traversal without a hit instead of looping.
+#[test]
+fn nan_ray_terminates() {
+    use glint::cpu::trace::{make_ray, traverse, CpuScene, NO_HIT};
+    let c = case("quad_grid");
+    let bvh = Bvh::build(&c.scene);
+    let scene = CpuScene::<f32>::new(
+        &c.scene,
+        &bvh,
+        &Camera::new(8, 8),
+        [1.0; 3],
+        Methods::Robust,
+    );
+    for dir in [
+        glam::Vec3::new(f32::NAN, 0.0, -1.0),
+        glam::Vec3::NAN,
+        glam::Vec3::ZERO,
+    ] {
+        let hit = traverse(&scene, &make_ray(glam::Vec3::ZERO, dir), f32::MAX, false);
+        assert_eq!(hit.prim, NO_HIT, "direction {dir:?}");
+    }
+}
