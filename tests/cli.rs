@@ -295,3 +295,73 @@ fn compare_reports_metrics_and_fails_on_request() {
     assert!(stdout(&o).contains("worst pixels"), "{}", stdout(&o));
     assert!(d.path().join("d.png").exists());
 }
+
+/// `--pixel` prints the pixel's path on the chosen backend and writes no image.
+#[test]
+fn pixel_path_is_printed_on_each_backend() {
+    let d = tmp();
+    let scene = showcase();
+    let mut backends = vec!["cpu"];
+    if gpu().is_some() {
+        backends.push("gpu");
+    }
+    for backend in backends {
+        let o = glint(
+            &["render", &scene, "--pixel", "320,300", "--backend", backend],
+            d.path(),
+        );
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        let out = stdout(&o);
+        for want in [
+            "pixel 320,300 of 640x480",
+            "hit sphere 2 at t = ",
+            "geometric normal",
+            "light 0: shadow ray from",
+            "light 1: shadow ray from",
+            "colour before clamping",
+            "8-bit value",
+        ] {
+            assert!(out.contains(want), "{backend}: no `{want}` in\n{out}");
+        }
+        assert!(std::fs::read_dir(d.path()).expect("dir").next().is_none());
+    }
+    let o = glint(&["render", &scene, "--pixel", "640,0"], d.path());
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("outside the 640x480 image"),
+        "{}",
+        stderr(&o)
+    );
+    let o = glint(&["render", &scene, "--pixel", "3"], d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("expected X,Y"), "{}", stderr(&o));
+}
+
+#[test]
+fn hard_scenes_are_written_and_render_with_naive_methods_too() {
+    let d = tmp();
+    let o = glint(&["bench", "hard", "--write-scenes", "hard"], d.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let written = std::fs::read_dir(d.path().join("hard"))
+        .expect("dir")
+        .count();
+    assert_eq!(written, glint::hard::cases().len());
+    let o = glint(
+        &[
+            "render",
+            "hard/contact_box.scene",
+            "c.png",
+            "--methods",
+            "naive",
+            "--backend",
+            "cpu",
+            "--width",
+            "32",
+            "--height",
+            "24",
+        ],
+        d.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(d.path().join("c.png").is_file());
+}

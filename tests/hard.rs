@@ -232,3 +232,55 @@ fn nan_ray_terminates() {
         assert_eq!(hit.prim, NO_HIT, "direction {dir:?}");
     }
 }
+
+/// The GPU's `probe_pixel` record and the CPU f32 twin's path agree: same
+/// primitives and verdicts, values within f32 rounding.
+#[test]
+fn pixel_paths_agree_across_backends() {
+    let Some(gpu) = gpu() else {
+        return;
+    };
+    let gpu = gpu.lock().unwrap_or_else(|e| e.into_inner());
+    for name in ["acne_scale_1", "hundred_lights", "far_spheres"] {
+        let c = case(name);
+        let bvh = Bvh::build(&c.scene);
+        let packed = glint::layout::GpuScene::pack(&c.scene, &bvh);
+        let camera = c.camera();
+        for pixel in [[160, 120], [40, 200], [300, 30], [100, 150]] {
+            let g = gpu
+                .renderer
+                .pixel_path(&packed, &camera, [1.0; 3], pixel, &Default::default())
+                .expect("GPU path");
+            let cpu = glint::cpu::pixel_path(
+                &c.scene,
+                &bvh,
+                &camera,
+                [1.0; 3],
+                Precision::F32,
+                Methods::Robust,
+                pixel,
+            );
+            let at = format!("{name} {pixel:?}");
+            assert_eq!(g.prim, cpu.prim, "{at}");
+            assert_eq!(g.shadow_mask, cpu.shadow_mask, "{at}");
+            assert_eq!(g.lights.len(), cpu.lights.len(), "{at}");
+            assert!(
+                (g.t - cpu.t).abs() <= 1e-5 * cpu.t.abs(),
+                "{at}: t {} vs {}",
+                g.t,
+                cpu.t
+            );
+            for (a, b) in g.lights.iter().zip(&cpu.lights) {
+                assert_eq!(a.blocker, b.blocker, "{at}");
+            }
+            for k in 0..3 {
+                assert!(
+                    (g.color[k] - cpu.color[k]).abs() < 1e-4,
+                    "{at}: {:?} vs {:?}",
+                    g.color,
+                    cpu.color
+                );
+            }
+        }
+    }
+}

@@ -244,3 +244,31 @@ proptest! {
         }
     }
 }
+
+#[test]
+fn non_unit_normals_are_renormalized_with_a_warning() {
+    let src = "1\namb: 0 0 0\ntriangle\n\
+               pos: 0 0 -1 nor: 0 0 1e30 dif: 1 1 1 spe: 0 0 0 shi: 1\n\
+               pos: 1 0 -1 nor: 0 0 2 dif: 1 1 1 spe: 0 0 0 shi: 1\n\
+               pos: 0 1 -1 nor: 0 0 1.00001 dif: 1 1 1 spe: 0 0 0 shi: 1\n";
+    let scene = parse_scene(src.as_bytes(), "n.scene").expect("renderable");
+    let normals = scene.triangles[0].vertices.map(|v| v.normal);
+    assert_eq!(normals[0], glam::DVec3::Z);
+    assert_eq!(normals[1], glam::DVec3::Z);
+    // Within the classic files' 2e-5 of unit length: kept as written.
+    assert_eq!(normals[2].z, 1.00001);
+    assert_eq!(scene.warnings.len(), 2);
+    assert_eq!((scene.warnings[0].line, scene.warnings[0].col), (4, 13));
+    assert!(scene.warnings[0].message.contains("length 1e30"));
+    assert!(scene.warnings[1].message.contains("length 2e0"));
+}
+
+#[test]
+fn numbers_beyond_f32_are_located_errors() {
+    let src = "1\namb: 0 0 0\nsphere\npos: 0 0 -1e39\nrad: 1\n\
+               dif: 1 1 1\nspe: 0 0 0\nshi: 1\n";
+    let e = parse_scene(src.as_bytes(), "big.scene").expect_err("1e39 overflows f32");
+    let text = e.to_string();
+    assert!(text.contains("big.scene:4:10"), "{text}");
+    assert!(text.contains("f32 limit"), "{text}");
+}
