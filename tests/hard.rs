@@ -284,3 +284,41 @@ fn pixel_paths_agree_across_backends() {
         }
     }
 }
+
+/// Zero-area and collinear triangles are never hit, on any backend (the
+/// watertight test's determinant is exactly 0 for them).
+#[test]
+fn degenerate_triangles_are_never_hit() {
+    let c = case("degenerate_triangles");
+    // The generator's first three: a point, two equal corners, collinear.
+    let degenerate = [0u32, 1, 2];
+    let gpu = gpu().map(|g| g.lock().unwrap_or_else(|e| e.into_inner()));
+    let mut images = vec![("CPU f64", c.reference())];
+    images.push((
+        "CPU f32",
+        hard::probe(&c, Runner::CpuF32, Methods::Robust, None)
+            .expect("probe")
+            .0,
+    ));
+    if let Some(g) = &gpu {
+        let (image, _) =
+            hard::probe(&c, Runner::Gpu, Methods::Robust, Some(&g.renderer)).expect("probe");
+        images.push(("GPU", image));
+    }
+    for (name, image) in images {
+        let hits = image
+            .pixels
+            .iter()
+            .filter(|p| degenerate.contains(&p.prim))
+            .count();
+        assert_eq!(hits, 0, "{name}: degenerate triangles hit");
+        // Their neighbours with zero, huge, flipped and cancelling normals
+        // (generator order 5..=9) are hit.
+        for prim in 5..=9 {
+            assert!(
+                image.pixels.iter().any(|p| p.prim == prim),
+                "{name}: triangle {prim} missed"
+            );
+        }
+    }
+}
