@@ -475,7 +475,7 @@ pub fn surface_point<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>, hit: &Hit<R>) -
         p,
         n,
         ng,
-        scale: R::vmax3(R::vabs(tri[0]), R::vabs(tri[1]), R::vabs(tri[2])),
+        scale: R::vabs(tri[0] * w[0]) + R::vabs(tri[1] * w[1]) + R::vabs(tri[2] * w[2]),
         kd: s[0].kd * w[0] + s[1].kd * w[1] + s[2].kd * w[2],
         ks: s[0].ks * w[0] + s[1].ks * w[1] + s[2].ks * w[2],
         shininess: w[0] * s[0].shininess + w[1] * s[1].shininess + w[2] * s[2].shininess,

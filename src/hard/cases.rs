@@ -345,7 +345,8 @@ fn vertex_rays() -> Case {
     )
 }
 
-fn grazing() -> Case {
+/// `light_height`: of the grazing light above the ground, 50 away.
+fn grazing(name: &str, light_height: f64, checks: &[Metric]) -> Case {
     let m = mat(0.7, 0.3, 30.0);
     let mut tris = Vec::new();
     tris.extend(ground(-1.0, [-1e5, 1e5], [-1e5, 10.0], m));
@@ -368,17 +369,34 @@ fn grazing() -> Case {
         m,
     ));
     let lights = vec![
-        // 0.1 above the ground, far away: every ground shadow ray grazes it.
-        light(DVec3::new(0.0, -0.9, -50.0), 0.6),
+        // Low and far away: every ground shadow ray grazes the ground.
+        light(DVec3::new(0.0, -1.0 + light_height, -50.0), 0.6),
         light(DVec3::new(5.0, 10.0, 5.0), 0.4),
     ];
     let spheres = vec![sphere(DVec3::new(1.0, -0.5, -6.0), 0.5, m)];
-    case(
-        "grazing",
-        "huge ground and wall triangles, a plane 0.57 deg from edge-on, a light grazing the ground",
-        scene(0.1, lights, spheres, tris),
-        SHADING,
-    )
+    // Turned 0.7 degrees about an oblique axis through the camera, so that no
+    // coordinate of a hit point is exact (an axis-aligned ground at y = -1
+    // would be kind to any method).
+    let turn = glam::DQuat::from_axis_angle(DVec3::new(0.3, 1.0, 0.2).normalize(), 0.012);
+    let mut turned = scene(0.1, lights, spheres, tris);
+    for t in &mut turned.triangles {
+        for v in &mut t.vertices {
+            v.position = turn * v.position;
+            v.normal = turn * v.normal;
+        }
+    }
+    for s in &mut turned.spheres {
+        s.center = turn * s.center;
+    }
+    for l in &mut turned.lights {
+        l.position = turn * l.position;
+    }
+    let what = format!(
+        "huge ground and wall triangles, a plane 0.57 deg from edge-on, a light {:.2} deg above \
+         the ground, all turned 0.7 deg off the axes",
+        (light_height / 50.0).atan().to_degrees()
+    );
+    case(name, &what, turned, checks)
 }
 
 fn far_spheres() -> Case {
@@ -667,7 +685,12 @@ pub fn all() -> Vec<Case> {
         sphere_inside(),
         quad_grid(),
         vertex_rays(),
-        grazing(),
+        grazing("grazing", 4.0, SHADING),
+        // A light 0.1 deg above the ground amplifies the f32 error of a point
+        // on a 2e5-wide triangle some 500-fold along the ground: the shadow
+        // edge near the sphere's contact is uncertain by pixels. Reported,
+        // not asserted (see the README).
+        grazing("grazing_light_0.1deg", 0.1, &[Nan]),
         far_spheres(),
     ];
     out.extend(acne_cases());

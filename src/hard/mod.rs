@@ -68,17 +68,41 @@ impl Case {
     }
 }
 
-/// Every case, in a fixed order.
+/// Every case, in a fixed order. Every number is rounded to f32 first, so
+/// the f32 backends and the f64 reference see the same geometry and the
+/// counts measure arithmetic, not the rounding of the input.
 pub fn cases() -> Vec<Case> {
     cases::all()
         .into_iter()
         .map(|mut c| {
+            c.scene = representable_in_f32(&c.scene);
             c.text = to_classic_text(&c.scene);
             c.scene = parse_scene(c.text.as_bytes(), &format!("{SCENE_DIR}/{}.scene", c.name))
                 .expect("generated hard-case scenes parse");
             c
         })
         .collect()
+}
+
+fn representable_in_f32(scene: &Scene) -> Scene {
+    let r = |v: glam::DVec3| v.as_vec3().as_dvec3();
+    let mut s = scene.clone();
+    s.ambient = r(s.ambient);
+    for sphere in &mut s.spheres {
+        sphere.center = r(sphere.center);
+        sphere.radius = f64::from(sphere.radius as f32);
+    }
+    for t in &mut s.triangles {
+        for v in &mut t.vertices {
+            v.position = r(v.position);
+            v.normal = r(v.normal);
+        }
+    }
+    for l in &mut s.lights {
+        l.position = r(l.position);
+        l.color = r(l.color);
+    }
+    s
 }
 
 /// Writes every case's scene file into `dir` (created if missing); returns
