@@ -279,6 +279,8 @@ pub struct HardOptions {
     pub repeat: usize,
     /// Also time robust vs naive methods.
     pub timing: bool,
+    /// Failing pixels to list per case, backend and metric (robust methods).
+    pub examples: usize,
 }
 
 pub struct HardReport {
@@ -314,13 +316,32 @@ pub fn run_hard(
          robust methods; `-`: not checked for that case.\n",
         rayon::current_num_threads()
     );
-    let rows = hard::run(renderer.as_ref(), &Methods::ALL, progress)?;
+    let rows = hard::run(renderer.as_ref(), &Methods::ALL, options.examples, progress)?;
     let robust_failures = rows
         .iter()
         .filter(|r| r.methods == Methods::Robust)
         .map(|r| r.failures().len())
         .sum();
     out.push_str(&hard::to_markdown(&rows, &Methods::ALL));
+    let robust_examples: Vec<&hard::Row> = rows
+        .iter()
+        .filter(|r| r.methods == Methods::Robust && !r.examples.is_empty())
+        .collect();
+    if !robust_examples.is_empty() {
+        let _ = writeln!(
+            out,
+            "\nFirst pixels behind each robust count (write the scenes first: \
+             `glint bench hard --write-scenes`):\n"
+        );
+        for r in robust_examples {
+            for (metric, commands) in &r.examples {
+                let _ = writeln!(out, "- {} on {}, {metric}:", r.case, r.runner.name());
+                for c in commands {
+                    let _ = writeln!(out, "  - `{c}`");
+                }
+            }
+        }
+    }
     if options.timing {
         let mut subjects: Vec<(String, crate::scene::Scene, Camera)> = Vec::new();
         let classic = std::path::Path::new(CLASSIC_DIR).join("SIGGRAPH.scene");

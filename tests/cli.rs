@@ -365,3 +365,25 @@ fn hard_scenes_are_written_and_render_with_naive_methods_too() {
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     assert!(d.path().join("c.png").is_file());
 }
+
+/// `glint bench hard` end to end (CPU only here; tests/hard.rs covers the
+/// GPU): the table, a pixel list, and exit 0 since every robust count passes.
+#[test]
+fn bench_hard_prints_counts_and_pixels() {
+    let d = tmp();
+    let o = glint(
+        &["bench", "hard", "--no-gpu", "--no-timing", "--pixels", "1"],
+        d.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(
+        out.contains("| case | backend | NaN | crack | acne |"),
+        "{out}"
+    );
+    assert!(
+        out.contains("| vertex_rays | CPU f32 | 0 / 0 | 0 / **"),
+        "{out}"
+    );
+    assert!(out.contains("--pixel "), "{out}");
+}

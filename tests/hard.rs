@@ -63,7 +63,7 @@ fn check(name: &str) {
                     .map(|&p| format!("\n    {}", case.pixel_command(p)))
                     .collect();
                 failures.push(format!(
-                    "{} {m} pixels on {}; first:{}",
+                    "{} {m} pixels on {}; first (after `glint bench hard --write-scenes`):{}",
                     pixels.len(),
                     runner.name(),
                     first.concat()

@@ -35,6 +35,10 @@ pub struct HardArgs {
     /// Counts only, no timings.
     #[arg(long)]
     no_timing: bool,
+    /// List the first N pixels behind every robust count that is not zero,
+    /// as `glint render ... --pixel X,Y` commands.
+    #[arg(long, value_name = "N", default_value_t = 0)]
+    pixels: usize,
     /// Write the suite's scene files into DIR (default scenes/hard) and exit.
     #[arg(long, value_name = "DIR", num_args = 0..=1, default_missing_value = glint::hard::SCENE_DIR)]
     write_scenes: Option<PathBuf>,
@@ -84,6 +88,7 @@ fn run_hard(args: HardArgs) -> anyhow::Result<ExitCode> {
         device: args.device.as_deref().map(DeviceSelector::parse),
         repeat: args.repeat as usize,
         timing: !args.no_timing,
+        examples: args.pixels,
     };
     let report = glint::bench::run_hard(&options, &mut |line| eprintln!("{line}"))?;
     println!("{}", report.markdown);

@@ -171,6 +171,8 @@ pub struct Row {
     pub methods: Methods,
     pub counts: Counts,
     pub checks: Vec<Metric>,
+    /// Per metric with a count, the `--pixel` commands of its first pixels.
+    pub examples: Vec<(Metric, Vec<String>)>,
 }
 
 impl Row {
@@ -186,9 +188,11 @@ impl Row {
 
 /// Runs every case on the GPU (when given) and the CPU f32 reference, with
 /// each of `methods`; `progress` gets a line per case.
+/// `examples`: how many failing pixels per metric each row keeps.
 pub fn run(
     gpu: Option<&GpuRenderer>,
     methods: &[Methods],
+    examples: usize,
     progress: &mut dyn FnMut(&str),
 ) -> Result<Vec<Row>, Error> {
     let mut rows = Vec::new();
@@ -202,12 +206,24 @@ pub fn run(
         for &m in methods {
             for &runner in &runners {
                 let (image, _) = probe(&case, runner, m, gpu)?;
+                let counts = count(&image, &reference);
+                let examples = Metric::ALL
+                    .iter()
+                    .filter(|&&metric| examples > 0 && counts.get(metric) > 0)
+                    .map(|&metric| {
+                        let mut pixels = metrics::failing_pixels(&image, &reference, metric);
+                        pixels.truncate(examples);
+                        let commands = pixels.iter().map(|&p| case.pixel_command(p)).collect();
+                        (metric, commands)
+                    })
+                    .collect();
                 rows.push(Row {
                     case: case.name.clone(),
                     runner,
                     methods: m,
-                    counts: count(&image, &reference),
+                    counts,
                     checks: case.checks.clone(),
+                    examples,
                 });
             }
         }
