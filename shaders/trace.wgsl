@@ -403,8 +403,8 @@ fn occluder(ray: Ray) -> Hit {
     return traverse(ray, 1.0, true);
 }
 
-// Origin for a ray leaving p on the side n points to; `scale` is the
-// per-axis magnitude of the coordinates p was computed from.
+// Origin for a ray leaving p on the side n points to; `scale` bounds, per
+// axis, the magnitudes p was computed from (SurfacePoint.scale).
 fn offset_ray(p: vec3<f32>, n: vec3<f32>, scale: vec3<f32>) -> vec3<f32> {
     if (!ROBUST) {
         return p + NAIVE_OFFSET * n;
