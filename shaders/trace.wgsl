@@ -585,21 +585,20 @@ fn probe_pixel(@builtin(local_invocation_index) lane: u32) {
     }
     let ray = pixel_ray(tile.origin.x, tile.origin.y);
     let r = trace_primary(ray);
-    let room = (arrayLength(&output) - PATH_HEADER) / PATH_PER_LIGHT;
-    let shown = select(0u, min(frame.light_count, room), r.hit.prim != NO_HIT);
     output[0] = vec4(bitcast<f32>(r.hit.prim), r.hit.t, r.hit.b1, r.hit.b2);
     output[1] = vec4(ray.dir, bitcast<f32>(r.flags));
     output[2] = vec4(r.color, bitcast<f32>(r.shadow_mask));
-    output[3] = vec4(0.0, 0.0, 0.0, bitcast<f32>(shown));
     if (r.hit.prim == NO_HIT) {
         return;
     }
+    let room = (arrayLength(&output) - PATH_HEADER) / PATH_PER_LIGHT;
+    let shown = min(frame.light_count, room);
     let sp = surface_point(ray, r.hit);
-    output[4] = vec4(sp.p, sp.shininess);
-    output[5] = vec4(sp.n, 0.0);
-    output[6] = vec4(sp.ng, 0.0);
-    output[7] = vec4(sp.kd, 0.0);
-    output[3] = vec4(sp.ks, bitcast<f32>(shown));
+    output[3] = vec4(sp.p, sp.shininess);
+    output[4] = vec4(sp.n, bitcast<f32>(shown));
+    output[5] = vec4(sp.ng, 0.0);
+    output[6] = vec4(sp.kd, 0.0);
+    output[7] = vec4(sp.ks, 0.0);
     for (var i = 0u; i < shown; i++) {
         let term = light_term(sp, -ray.dir, lights[i]);
         let base = PATH_HEADER + PATH_PER_LIGHT * i;

@@ -35,6 +35,20 @@ pub struct Stat {
     pub max: Duration,
 }
 
+/// "median (min-max)" in milliseconds.
+impl std::fmt::Display for Stat {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let ms = |d: Duration| d.as_secs_f64() * 1e3;
+        write!(
+            f,
+            "{:.1} ({:.1}-{:.1})",
+            ms(self.median),
+            ms(self.min),
+            ms(self.max)
+        )
+    }
+}
+
 impl Stat {
     pub fn of(mut samples: Vec<Duration>) -> Option<Stat> {
         if samples.is_empty() {
@@ -211,15 +225,7 @@ impl BenchReport {
     /// A Markdown table of medians (min-max in brackets), in milliseconds.
     pub fn to_markdown(&self) -> String {
         let mut out = String::new();
-        let cell = |s: Option<Stat>| match s {
-            Some(s) => format!(
-                "{:.1} ({:.1}-{:.1})",
-                s.median.as_secs_f64() * 1e3,
-                s.min.as_secs_f64() * 1e3,
-                s.max.as_secs_f64() * 1e3
-            ),
-            None => "-".into(),
-        };
+        let cell = |s: Option<Stat>| s.map_or_else(|| "-".into(), |s| s.to_string());
         let _ = writeln!(
             out,
             "{}x{}, median of {} runs (min-max), milliseconds; CPU reference on {} threads",
@@ -369,33 +375,31 @@ pub fn run_hard(
             let bvh = Bvh::build(scene);
             let packed = GpuScene::pack(scene, &bvh);
             let bg = [1.0; 3];
-            let mut stats = Vec::new();
-            for backend in ["GPU", "CPU f32"] {
-                if backend == "GPU" && renderer.is_none() {
-                    continue;
-                }
-                let mut per = Vec::new();
+            for runner in hard::runners(renderer.as_ref()) {
                 // Interleaved so that drift (thermal, other load) hits both alike.
                 let mut samples = [Vec::new(), Vec::new()];
                 for i in 0..=options.repeat {
                     for (k, &methods) in Methods::ALL.iter().enumerate() {
                         let start = Instant::now();
-                        if let Some(r) = renderer.as_ref().filter(|_| backend == "GPU") {
-                            let opts = GpuRenderOptions {
-                                methods,
-                                ..Default::default()
-                            };
-                            r.render(&packed, camera, bg, &opts, &|_, _| {})?;
-                        } else {
-                            cpu::render(
-                                scene,
-                                &bvh,
-                                camera,
-                                bg,
-                                Precision::F32,
-                                methods,
-                                &|_, _| {},
-                            );
+                        match (runner, &renderer) {
+                            (hard::Runner::Gpu, Some(r)) => {
+                                let opts = GpuRenderOptions {
+                                    methods,
+                                    ..Default::default()
+                                };
+                                r.render(&packed, camera, bg, &opts, &|_, _| {})?;
+                            }
+                            _ => {
+                                cpu::render(
+                                    scene,
+                                    &bvh,
+                                    camera,
+                                    bg,
+                                    Precision::F32,
+                                    methods,
+                                    &|_, _| {},
+                                );
+                            }
                         }
                         // The first round warms caches and lazy compiles.
                         if i > 0 {
@@ -403,30 +407,16 @@ pub fn run_hard(
                         }
                     }
                 }
-                for s in samples {
-                    per.push(Stat::of(s).expect("repeat >= 1"));
-                }
-                progress(&format!("{name}: {backend} timed"));
-                stats.push((backend, per));
-            }
-            for (backend, per) in stats {
-                let cell = |s: &Stat| {
-                    format!(
-                        "{:.1} ({:.1}-{:.1})",
-                        s.median.as_secs_f64() * 1e3,
-                        s.min.as_secs_f64() * 1e3,
-                        s.max.as_secs_f64() * 1e3
-                    )
-                };
-                let ratio = per[0].median.as_secs_f64() / per[1].median.as_secs_f64();
+                let [robust, naive] = samples.map(|s| Stat::of(s).expect("repeat >= 1"));
+                let ratio = robust.median.as_secs_f64() / naive.median.as_secs_f64();
                 let _ = writeln!(
                     out,
-                    "| {name} ({}x{}) | {backend} | {} | {} | {ratio:.2} |",
+                    "| {name} ({}x{}) | {} | {robust} | {naive} | {ratio:.2} |",
                     camera.width,
                     camera.height,
-                    cell(&per[0]),
-                    cell(&per[1])
+                    runner.name()
                 );
+                progress(&format!("{name}: {} timed", runner.name()));
             }
         }
     }

@@ -118,20 +118,25 @@ fn xyz(t: [f32; 4]) -> [f64; 3] {
 }
 
 impl PathRecord {
-    /// Decodes the shader's `probe_pixel` record.
+    /// Decodes the shader's `probe_pixel` record. Texels: 0 (prim, t, b1,
+    /// b2), 1 (ray direction, flags), 2 (colour, shadow mask); for a hit
+    /// also 3 (point, shininess), 4 (normal, lights listed), 5 geometric
+    /// normal, 6 kd, 7 ks, then per light (origin, blocker), (L·N, R·V,
+    /// power, blocker t), (contribution).
     pub fn from_texels(texels: &[[f32; 4]]) -> PathRecord {
         let h = |i: u32| texels[i as usize];
         let prim = h(0)[0].to_bits();
-        let shown = h(3)[3].to_bits() as usize;
+        // Texels 3.. are written only for a hit.
+        let shown = if prim == NO_HIT { 0 } else { h(4)[3].to_bits() };
         let surface = (prim != NO_HIT).then(|| PathSurface {
-            point: xyz(h(4)),
-            normal: xyz(h(5)),
-            geometric_normal: xyz(h(6)),
-            kd: xyz(h(7)),
-            ks: xyz(h(3)),
-            shininess: f64::from(h(4)[3]),
+            point: xyz(h(3)),
+            normal: xyz(h(4)),
+            geometric_normal: xyz(h(5)),
+            kd: xyz(h(6)),
+            ks: xyz(h(7)),
+            shininess: f64::from(h(3)[3]),
         });
-        let lights = (0..shown as u32)
+        let lights = (0..shown)
             .map(|i| {
                 let base = PATH_HEADER + PATH_PER_LIGHT * i;
                 let (a, b, c) = (h(base), h(base + 1), h(base + 2));

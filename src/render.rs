@@ -168,6 +168,15 @@ impl Setup {
         }
     }
 
+    fn probed<T>(self, value: T) -> Probed<T> {
+        Probed {
+            value,
+            renderer: self.renderer_name(),
+            validation_messages: self.validation_messages(),
+            note: self.note,
+        }
+    }
+
     fn validation_messages(&self) -> u32 {
         match &self.engine {
             Engine::Gpu { ctx, .. } => ctx.validation_messages(),
@@ -256,12 +265,7 @@ pub fn probe(scene: &Scene, options: &RenderOptions) -> Result<Probed<ProbeImage
             options.methods,
         ),
     };
-    Ok(Probed {
-        value,
-        renderer: setup.renderer_name(),
-        validation_messages: setup.validation_messages(),
-        note: setup.note,
-    })
+    Ok(setup.probed(value))
 }
 
 /// The path of pixel (x, y) on the chosen backend: hit, surface, each light's
@@ -300,10 +304,5 @@ pub fn pixel_path(
             pixel,
         ),
     };
-    Ok(Probed {
-        value,
-        renderer: setup.renderer_name(),
-        validation_messages: setup.validation_messages(),
-        note: setup.note,
-    })
+    Ok(setup.probed(value))
 }

@@ -84,7 +84,6 @@ pub trait Real:
     /// Moves `p` off its surface along `n` by whole ulps (Ray Tracing Gems ch. 6).
     /// `scale`: per-axis magnitude of the coordinates `p` came from.
     fn offset_ray(p: Self::V3, n: Self::V3, scale: Self::V3) -> Self::V3;
-    fn vmax3(a: Self::V3, b: Self::V3, c: Self::V3) -> Self::V3;
 }
 
 macro_rules! impl_real {
@@ -173,9 +172,6 @@ macro_rules! impl_real {
             }
             fn vabs(v: $v) -> $v {
                 v.abs()
-            }
-            fn vmax3(a: $v, b: $v, c: $v) -> $v {
-                a.max(b).max(c)
             }
             fn offset_ray(p: $v, n: $v, scale: $v) -> $v {
                 let off = |p: $t, n: $t, scale: $t| -> $t {

@@ -139,6 +139,14 @@ impl Runner {
     }
 }
 
+/// The GPU (when there is one), then the CPU f32 reference.
+pub fn runners(gpu: Option<&GpuRenderer>) -> Vec<Runner> {
+    gpu.map(|_| Runner::Gpu)
+        .into_iter()
+        .chain([Runner::CpuF32])
+        .collect()
+}
+
 /// Probes `case` on `runner` with `methods`; also returns the time taken.
 pub fn probe(
     case: &Case,
@@ -196,11 +204,7 @@ pub fn run(
     progress: &mut dyn FnMut(&str),
 ) -> Result<Vec<Row>, Error> {
     let mut rows = Vec::new();
-    let runners: Vec<Runner> = gpu
-        .map(|_| Runner::Gpu)
-        .into_iter()
-        .chain([Runner::CpuF32])
-        .collect();
+    let runners = runners(gpu);
     for case in cases() {
         let reference = case.reference();
         for &m in methods {
