@@ -11,6 +11,7 @@
 //   6  storage, read      array<BvhNode>           depth-first, see src/bvh.rs
 //   7  storage, read      array<u32>               primitive refs (bit 31: sphere)
 //   8  storage, rw        array<vec4<f32>>         tile output, linear RGB, row-major
+//   9  storage, read      array<vec4<f32>>         velocities: spheres, then triangles
 //
 // Entry points: render_tile (colour), probe_tile (per-pixel hit and shadow
 // verdicts, for the robustness suite) and probe_pixel (one pixel's whole
@@ -18,6 +19,13 @@
 //
 // The CPU reference (src/cpu/trace.rs) implements the same functions under
 // the same names; keep them in step.
+//
+// Effects are compiled in only when the scene calls for them: each feature
+// is an `override` (SPHERES, TRIANGLES, REFLECTION, AREA_LIGHTS, MOTION_BLUR,
+// MULTISAMPLE; src/info.rs decides them), resolved by naga's
+// process_overrides at pipeline build, after which src/gpu/shader.rs deletes
+// every `if (FEATURE)` whose feature is off. Feature tests therefore stand
+// alone in their own `if`, never inside a larger condition.
 
 struct Frame {
     background: vec4<f32>,
@@ -26,7 +34,13 @@ struct Frame {
     size: vec2<u32>,
     node_count: u32,
     light_count: u32,
-    _pad: vec2<u32>,
+    sphere_count: u32,
+    seed: u32,
+    spp: u32,
+    shadow_samples: u32,
+    reflect_depth: u32,
+    // Seconds the shutter stays open (0 without motion blur).
+    shutter: f32,
 }
 
 struct Tile {
@@ -57,8 +71,17 @@ struct VertexShading {
 }
 
 struct Light {
-    position: vec4<f32>,
-    color: vec4<f32>,
+    position: vec3<f32>,
+    // LIGHT_POINT, LIGHT_SPHERE or LIGHT_RECT.
+    kind: u32,
+    color: vec3<f32>,
+    radius: f32,
+    edge_u: vec3<f32>,
+    _pad0: f32,
+    edge_v: vec3<f32>,
+    _pad1: f32,
+    velocity: vec3<f32>,
+    _pad2: f32,
 }
 
 struct BvhNode {
@@ -77,6 +100,7 @@ struct BvhNode {
 @group(0) @binding(6) var<storage, read> nodes: array<BvhNode>;
 @group(0) @binding(7) var<storage, read> prim_refs: array<u32>;
 @group(0) @binding(8) var<storage, read_write> output: array<vec4<f32>>;
+@group(0) @binding(9) var<storage, read> velocities: array<vec4<f32>>;
 
 const SPHERE_BIT: u32 = 0x80000000u;
 const BVH_MAX_DEPTH: u32 = 64u;
@@ -114,6 +138,25 @@ const OFFSET_INT_SCALE: f32 = 256.0;
 // the "naive" variant that `glint bench hard` measures against. Resolved by
 // naga's process_overrides in build.rs, so each variant carries one branch.
 override ROBUST: bool = true;
+// The scene's feature set (see the header).
+override SPHERES: bool = true;
+override TRIANGLES: bool = true;
+override REFLECTION: bool = true;
+override AREA_LIGHTS: bool = true;
+override MOTION_BLUR: bool = true;
+override MULTISAMPLE: bool = true;
+const LIGHT_POINT: u32 = 0u;
+const LIGHT_SPHERE: u32 = 1u;
+const LIGHT_RECT: u32 = 2u;
+// Random number streams (see rng): one per purpose, area lights one per
+// (bounce, light).
+const STREAM_PIXEL: u32 = 0u;
+const STREAM_TIME: u32 = 1u;
+const STREAM_LIGHT: u32 = 2u;
+// The index that draws a per-stream value (a stratum rotation) rather than a
+// per-sample one.
+const ROTATION: u32 = 0xffffffffu;
+const PI: f32 = 3.14159265358979;
 // The naive variant's magic numbers: a distance and Möller-Trumbore's
 // determinant epsilon (Möller and Trumbore 1997).
 const NAIVE_OFFSET: f32 = 1e-4;
@@ -133,6 +176,8 @@ struct Ray {
     // Watertight triangle test: axis permutation (kx, ky, kz) and shear.
     k: vec3<u32>,
     shear: vec3<f32>,
+    // Seconds after the frame's time (motion blur).
+    time: f32,
 }
 
 struct Hit {
@@ -148,7 +193,7 @@ fn sign_nonzero(x: f32) -> f32 {
     return select(-1.0, 1.0, x >= 0.0);
 }
 
-fn make_ray(origin: vec3<f32>, dir: vec3<f32>) -> Ray {
+fn make_ray(origin: vec3<f32>, dir: vec3<f32>, time: f32) -> Ray {
     let safe = select(dir, vec3(sign_nonzero(dir.x), sign_nonzero(dir.y), sign_nonzero(dir.z)) * MIN_DIR,
                       abs(dir) < vec3(MIN_DIR));
     // Woop, Benthin and Wald, "Watertight Ray/Triangle Intersection", JCGT 2(1)
@@ -169,15 +214,71 @@ fn make_ray(origin: vec3<f32>, dir: vec3<f32>) -> Ray {
         ky = tmp;
     }
     let sz = 1.0 / dir[kz];
-    return Ray(origin, dir, 1.0 / safe, vec3(kx, ky, kz), vec3(dir[kx] * sz, dir[ky] * sz, sz));
+    return Ray(origin, dir, 1.0 / safe, vec3(kx, ky, kz), vec3(dir[kx] * sz, dir[ky] * sz, sz), time);
 }
 
-// Primary ray through the centre of pixel (x, y); row 0 is the top.
-fn pixel_ray(x: u32, y: u32) -> Ray {
+// Primary ray through `offset` within pixel (x, y) ((0.5, 0.5) is the
+// centre); row 0 is the top.
+fn camera_ray(x: u32, y: u32, offset: vec2<f32>, time: f32) -> Ray {
     let size = vec2<f32>(frame.size);
-    let ndc_x = (2.0 * (f32(x) + 0.5) / size.x - 1.0) * frame.half_extent.x;
-    let ndc_y = (1.0 - 2.0 * (f32(y) + 0.5) / size.y) * frame.half_extent.y;
-    return make_ray(vec3(0.0), normalize(vec3(ndc_x, ndc_y, -1.0)));
+    let ndc_x = (2.0 * (f32(x) + offset.x) / size.x - 1.0) * frame.half_extent.x;
+    let ndc_y = (1.0 - 2.0 * (f32(y) + offset.y) / size.y) * frame.half_extent.y;
+    return make_ray(vec3(0.0), normalize(vec3(ndc_x, ndc_y, -1.0)), time);
+}
+
+fn pixel_ray(x: u32, y: u32) -> Ray {
+    return camera_ray(x, y, vec2(0.5), 0.0);
+}
+
+// Counter-based random numbers: a pure function of (seed, pixel, sample,
+// stream, index), so every pixel and sample draws the same numbers on any
+// device, in any tile order, and on the CPU (src/cpu/sample.rs). The mixer
+// is Wellons' "lowbias32" integer hash, chained over the key.
+fn hash_u32(x: u32) -> u32 {
+    var h = x;
+    h ^= h >> 16u;
+    h *= 0x7feb352du;
+    h ^= h >> 15u;
+    h *= 0x846ca68bu;
+    h ^= h >> 16u;
+    return h;
+}
+
+fn rng(pixel: u32, sample: u32, stream: u32, index: u32) -> u32 {
+    var h = hash_u32(frame.seed ^ 0x9e3779b9u);
+    h = hash_u32(h ^ pixel);
+    h = hash_u32(h ^ sample);
+    h = hash_u32(h ^ stream);
+    return hash_u32(h ^ index);
+}
+
+// [0, 1) from the top 24 bits: exact in f32, so CPU and GPU agree bit for bit.
+fn unit_float(x: u32) -> f32 {
+    return f32(x >> 8u) * 5.9604644775390625e-8;
+}
+
+// ceil(sqrt(n)) in integers (a float sqrt may be off by one ulp).
+fn grid_columns(n: u32) -> u32 {
+    var c = u32(sqrt(f32(n)));
+    if (c * c < n) {
+        c += 1u;
+    }
+    if (c > 1u && (c - 1u) * (c - 1u) >= n) {
+        c -= 1u;
+    }
+    return max(c, 1u);
+}
+
+// Sample k of n in [0, 1)^2, stratified: the cols x rows grid (cols =
+// ceil(sqrt n)) has at least n cells; sample k takes cell (k + rotation) mod
+// cells, jittered within it. The rotation is random per pixel (or shading
+// point), so every cell is equally likely for every k (unbiased) and no two
+// samples share a cell (stratified). n a perfect square: a jittered grid.
+fn stratified_2d(k: u32, n: u32, rotation: u32, jitter: vec2<f32>) -> vec2<f32> {
+    let cols = grid_columns(n);
+    let rows = (n + cols - 1u) / cols;
+    let cell = (k + rotation % (cols * rows)) % (cols * rows);
+    return vec2((f32(cell % cols) + jitter.x) / f32(cols), (f32(cell / cols) + jitter.y) / f32(rows));
 }
 
 // Entry distance of the ray into the box within [0, t_max], or T_INF if it misses.
@@ -318,25 +419,57 @@ fn hit_triangle(ray: Ray, tri: Triangle, t_max: f32) -> vec3<f32> {
     return vec3(t_scaled * inv_det, v * inv_det, w * inv_det);
 }
 
+// Sphere `index` where it is `time` seconds after the frame's time.
+fn sphere_at(index: u32, time: f32) -> Sphere {
+    var s = spheres[index];
+    if (MOTION_BLUR) {
+        s.center += velocities[index].xyz * time;
+    }
+    return s;
+}
+
+fn triangle_at(index: u32, time: f32) -> Triangle {
+    var tri = triangles[index];
+    if (MOTION_BLUR) {
+        let shift = vec4(velocities[frame.sphere_count + index].xyz * time, 0.0);
+        tri.v[0] += shift;
+        tri.v[1] += shift;
+        tri.v[2] += shift;
+    }
+    return tri;
+}
+
+fn light_at(index: u32, time: f32) -> Light {
+    var light = lights[index];
+    if (MOTION_BLUR) {
+        light.position += light.velocity * time;
+    }
+    return light;
+}
+
 // Tests the leaf's primitives; `any_hit` returns at the first hit in range.
 fn hit_leaf(ray: Ray, node: BvhNode, best: ptr<function, Hit>, any_hit: bool) -> bool {
     for (var i = 0u; i < node.count; i++) {
         let prim = prim_refs[node.right_or_first + i];
         let index = prim & ~SPHERE_BIT;
         if ((prim & SPHERE_BIT) != 0u) {
-            let t = hit_sphere(ray, spheres[index], (*best).t);
-            if (t < (*best).t) {
-                *best = Hit(t, prim, 0.0, 0.0);
-                if (any_hit) {
-                    return true;
+            if (SPHERES) {
+                let t = hit_sphere(ray, sphere_at(index, ray.time), (*best).t);
+                if (t < (*best).t) {
+                    *best = Hit(t, prim, 0.0, 0.0);
+                    if (any_hit) {
+                        return true;
+                    }
                 }
             }
         } else {
-            let h = hit_triangle(ray, triangles[index], (*best).t);
-            if (h.x < (*best).t) {
-                *best = Hit(h.x, prim, h.y, h.z);
-                if (any_hit) {
-                    return true;
+            if (TRIANGLES) {
+                let h = hit_triangle(ray, triangle_at(index, ray.time), (*best).t);
+                if (h.x < (*best).t) {
+                    *best = Hit(h.x, prim, h.y, h.z);
+                    if (any_hit) {
+                        return true;
+                    }
                 }
             }
         }
@@ -450,12 +583,26 @@ struct SurfacePoint {
 fn surface_point(ray: Ray, hit: Hit) -> SurfacePoint {
     let index = hit.prim & ~SPHERE_BIT;
     if ((hit.prim & SPHERE_BIT) != 0u) {
-        let s = spheres[index];
-        let p = ray.origin + hit.t * ray.dir;
-        let n = (p - s.center) * (1.0 / s.radius);
-        return SurfacePoint(p, n, n, abs(s.center) + s.radius, s.kd, s.ks, s.shininess);
+        if (SPHERES) {
+            return sphere_surface(ray, hit, index);
+        }
     }
-    let tri = triangles[index];
+    if (TRIANGLES) {
+        return triangle_surface(ray, hit, index);
+    }
+    // Unreachable: no primitive of a kind the feature set leaves out exists.
+    return SurfacePoint(vec3(0.0), vec3(0.0, 0.0, 1.0), vec3(0.0, 0.0, 1.0), vec3(1.0), vec3(0.0), vec3(0.0), 0.0);
+}
+
+fn sphere_surface(ray: Ray, hit: Hit, index: u32) -> SurfacePoint {
+    let s = sphere_at(index, ray.time);
+    let p = ray.origin + hit.t * ray.dir;
+    let n = (p - s.center) * (1.0 / s.radius);
+    return SurfacePoint(p, n, n, abs(s.center) + s.radius, s.kd, s.ks, s.shininess);
+}
+
+fn triangle_surface(ray: Ray, hit: Hit, index: u32) -> SurfacePoint {
+    let tri = triangle_at(index, ray.time);
     let b0 = 1.0 - hit.b1 - hit.b2;
     let w = vec3(b0, hit.b1, hit.b2);
     // The point from barycentrics, not origin + t * dir: its error does not
@@ -491,13 +638,14 @@ struct LightTerm {
 }
 
 // light * (kd * max(L.N, 0) + ks * max(R.V, 0)^shininess) if nothing lies
-// between the point and the light. The specular term is not gated by L.N.
-fn light_term(sp: SurfacePoint, view: vec3<f32>, light: Light) -> LightTerm {
-    let to_light = light.position.xyz - sp.p;
+// between the point and the light at `light_pos`. The specular term is not
+// gated by L.N.
+fn point_term(sp: SurfacePoint, view: vec3<f32>, light_pos: vec3<f32>, color: vec3<f32>, time: f32) -> LightTerm {
+    let to_light = light_pos - sp.p;
     // Leave from the side of the surface that faces the light.
     let side = select(-sp.ng, sp.ng, dot(sp.ng, to_light) >= 0.0);
     let origin = offset_ray(sp.p, side, sp.scale);
-    var term = LightTerm(origin, occluder(make_ray(origin, light.position.xyz - origin)), 0.0, 0.0, 0.0, vec3(0.0));
+    var term = LightTerm(origin, occluder(make_ray(origin, light_pos - origin, time)), 0.0, 0.0, 0.0, vec3(0.0));
     if (term.blocker.prim != NO_HIT) {
         return term;
     }
@@ -506,8 +654,89 @@ fn light_term(sp: SurfacePoint, view: vec3<f32>, light: Light) -> LightTerm {
     let r = 2.0 * term.ln * sp.n - l;
     term.rv = max(dot(r, view), 0.0);
     term.spec = pow_c(term.rv, sp.shininess);
-    term.contribution = light.color.xyz * (sp.kd * max(term.ln, 0.0) + sp.ks * term.spec);
+    term.contribution = color * (sp.kd * max(term.ln, 0.0) + sp.ks * term.spec);
     return term;
+}
+
+// Where a shading sample is drawn for: which pixel, which of its samples,
+// and the sample's time.
+struct SampleKey {
+    pixel: u32,
+    sample: u32,
+    time: f32,
+}
+
+// Two unit vectors completing w (unit) to an orthonormal basis (Duff et al.,
+// "Building an Orthonormal Basis, Revisited", JCGT 6(1) 2017).
+fn basis_u(w: vec3<f32>) -> vec3<f32> {
+    let s = sign_nonzero(w.z);
+    let a = -1.0 / (s + w.z);
+    return vec3(1.0 + s * w.x * w.x * a, s * w.x * w.y * a, -s * w.x);
+}
+
+fn basis_v(w: vec3<f32>) -> vec3<f32> {
+    let s = sign_nonzero(w.z);
+    let a = -1.0 / (s + w.z);
+    return vec3(w.x * w.y * a, s + w.y * w.y * a, -w.y);
+}
+
+// The point of area light `light` that sample uv in [0, 1)^2 picks, seen
+// from p. A sphere light is sampled over the disc it shows p (its outline
+// from p, for lights small against their distance), uniformly by area.
+fn light_sample_point(light: Light, p: vec3<f32>, uv: vec2<f32>) -> vec3<f32> {
+    if (light.kind == LIGHT_RECT) {
+        return light.position + (uv.x - 0.5) * light.edge_u + (uv.y - 0.5) * light.edge_v;
+    }
+    let w = safe_normalize(light.position - p, vec3(0.0, 0.0, 1.0));
+    let r = light.radius * sqrt(uv.x);
+    let phi = 2.0 * PI * uv.y;
+    return light.position + r * cos(phi) * basis_u(w) + r * sin(phi) * basis_v(w);
+}
+
+// An area light as frame.shadow_samples point lights of colour / count on
+// a stratified pattern over its area. The blocker reported is the first one
+// found when every sample is blocked (the point is in the umbra).
+fn area_term(sp: SurfacePoint, view: vec3<f32>, light: Light, stream: u32, key: SampleKey) -> LightTerm {
+    let n = max(frame.shadow_samples, 1u);
+    let rotation = rng(key.pixel, key.sample, stream, ROTATION);
+    let color = light.color * (1.0 / f32(n));
+    var total = LightTerm(vec3(0.0), Hit(0.0, NO_HIT, 0.0, 0.0), 0.0, 0.0, 0.0, vec3(0.0));
+    var blocked = 0u;
+    for (var m = 0u; m < n; m++) {
+        let jitter = vec2(unit_float(rng(key.pixel, key.sample, stream, 2u * m)),
+                          unit_float(rng(key.pixel, key.sample, stream, 2u * m + 1u)));
+        let uv = stratified_2d(m, n, rotation, jitter);
+        let term = point_term(sp, view, light_sample_point(light, sp.p, uv), color, key.time);
+        total.contribution += term.contribution;
+        total.origin = term.origin;
+        if (term.blocker.prim != NO_HIT) {
+            if (blocked == 0u) {
+                total.blocker = term.blocker;
+            }
+            blocked += 1u;
+        } else {
+            total.ln = term.ln;
+            total.rv = term.rv;
+            total.spec = term.spec;
+        }
+    }
+    if (blocked < n) {
+        total.blocker = Hit(0.0, NO_HIT, 0.0, 0.0);
+    }
+    return total;
+}
+
+// Light `i`'s part in the Phong sum at sp, seen along `view`, on bounce
+// `bounce` of sample `key`.
+fn light_term(sp: SurfacePoint, view: vec3<f32>, i: u32, bounce: u32, key: SampleKey) -> LightTerm {
+    let light = light_at(i, key.time);
+    if (AREA_LIGHTS) {
+        if (light.kind != LIGHT_POINT) {
+            let stream = STREAM_LIGHT + (bounce << 24u) + i;
+            return area_term(sp, view, light, stream, key);
+        }
+    }
+    return point_term(sp, view, light.position, light.color, key.time);
 }
 
 struct Shading {
@@ -517,10 +746,10 @@ struct Shading {
     shadow_mask: u32,
 }
 
-fn shade_phong(sp: SurfacePoint, view: vec3<f32>) -> Shading {
+fn shade_phong(sp: SurfacePoint, view: vec3<f32>, bounce: u32, key: SampleKey) -> Shading {
     var out = Shading(frame.ambient.xyz, 0u);
     for (var i = 0u; i < frame.light_count; i++) {
-        let term = light_term(sp, view, lights[i]);
+        let term = light_term(sp, view, i, bounce, key);
         out.color += term.contribution;
         if (term.blocker.prim != NO_HIT) {
             out.shadow_mask |= 1u << min(i, 31u);
@@ -543,16 +772,98 @@ fn nonfinite(v: vec3<f32>) -> bool {
     return any(e == vec3(0x7f800000u));
 }
 
-fn trace_primary(ray: Ray) -> PixelResult {
+fn trace_primary(ray: Ray, key: SampleKey) -> PixelResult {
     let hit = trace_closest(ray);
     if (hit.prim == NO_HIT) {
         return PixelResult(hit, frame.background.xyz, 0u, 0u);
     }
     let sp = surface_point(ray, hit);
-    let shading = shade_phong(sp, -ray.dir);
+    let shading = shade_phong(sp, -ray.dir, 0u, key);
     var flags = select(0u, FLAG_NONFINITE_COLOR, nonfinite(shading.color));
     flags |= select(0u, FLAG_NONFINITE_SURFACE, nonfinite(sp.p) || nonfinite(sp.n));
     return PixelResult(hit, shading.color, shading.shadow_mask, flags);
+}
+
+// The colour seen along a primary ray, in [0, 1] (ks in [0, 1]): each
+// surface's clamped Phong colour, blended (1 - ks) * local + ks * reflected
+// per channel up to frame.reflect_depth bounces; the last surface reached
+// (or any with ks = 0) keeps its local colour, a ray that misses brings the
+// background. Iterative: the weight carries the product of the ks so far.
+fn radiance(primary: Ray, key: SampleKey) -> vec3<f32> {
+    let first = trace_primary(primary, key);
+    let local = clamp(first.color, vec3(0.0), vec3(1.0));
+    if (REFLECTION) {
+        if (first.hit.prim != NO_HIT && frame.reflect_depth > 0u) {
+            return reflect_path(primary, first.hit, local, key);
+        }
+    }
+    return local;
+}
+
+fn reflect_path(primary: Ray, first_hit: Hit, first_local: vec3<f32>, key: SampleKey) -> vec3<f32> {
+    var ray = primary;
+    var hit = first_hit;
+    var local = first_local;
+    var color = vec3(0.0);
+    var weight = vec3(1.0);
+    for (var bounce = 0u; bounce < frame.reflect_depth; bounce++) {
+        let sp = surface_point(ray, hit);
+        if (all(sp.ks == vec3(0.0))) {
+            break;
+        }
+        color += weight * (vec3(1.0) - sp.ks) * local;
+        weight *= sp.ks;
+        // Mirror direction about the shading normal; leave from the side of
+        // the surface it goes to, offset as shadow rays are.
+        let dir = safe_normalize(ray.dir - 2.0 * dot(ray.dir, sp.n) * sp.n, sp.n);
+        let side = select(-sp.ng, sp.ng, dot(sp.ng, dir) >= 0.0);
+        ray = make_ray(offset_ray(sp.p, side, sp.scale), dir, ray.time);
+        hit = trace_closest(ray);
+        if (hit.prim == NO_HIT) {
+            local = frame.background.xyz;
+            break;
+        }
+        let next = surface_point(ray, hit);
+        local = clamp(shade_phong(next, -ray.dir, bounce + 1u, key).color, vec3(0.0), vec3(1.0));
+    }
+    return color + weight * local;
+}
+
+// Sample `s` of `n` of pixel (x, y): a stratified position in the pixel
+// (centre when n = 1) and a uniform time in the shutter interval.
+fn sample_color(x: u32, y: u32, s: u32, n: u32) -> vec3<f32> {
+    let pixel = y * frame.size.x + x;
+    var offset = vec2(0.5);
+    var time = 0.0;
+    if (MULTISAMPLE) {
+        if (n > 1u) {
+            let rotation = rng(pixel, ROTATION, STREAM_PIXEL, ROTATION);
+            let jitter = vec2(unit_float(rng(pixel, s, STREAM_PIXEL, 0u)), unit_float(rng(pixel, s, STREAM_PIXEL, 1u)));
+            offset = stratified_2d(s, n, rotation, jitter);
+        }
+    }
+    if (MOTION_BLUR) {
+        // Uniform, not stratified: strata indexed by s as the pixel's are
+        // would tie each sample's time to its place in the pixel (time ~ the
+        // row), and the estimate would converge to a per-pixel sheared slice
+        // of the (x, y, t) integral, not the integral (measured: the error
+        // stopped falling at ~0.012 RMS from 256 samples on).
+        time = frame.shutter * unit_float(rng(pixel, s, STREAM_TIME, 0u));
+    }
+    return radiance(camera_ray(x, y, offset, time), SampleKey(pixel, s, time));
+}
+
+// Box filter over the pixel's samples.
+fn pixel_color(x: u32, y: u32) -> vec3<f32> {
+    if (MULTISAMPLE) {
+        let n = max(frame.spp, 1u);
+        var sum = vec3(0.0);
+        for (var s = 0u; s < n; s++) {
+            sum += sample_color(x, y, s, n);
+        }
+        return sum * (1.0 / f32(n));
+    }
+    return sample_color(x, y, 0u, 1u);
 }
 
 @compute @workgroup_size(WORKGROUP_SIZE, WORKGROUP_SIZE)
@@ -560,17 +871,24 @@ fn render_tile(@builtin(global_invocation_id) id: vec3<u32>) {
     if (id.x >= tile.size.x || id.y >= tile.size.y) {
         return;
     }
-    let color = trace_primary(pixel_ray(tile.origin.x + id.x, tile.origin.y + id.y)).color;
+    let color = pixel_color(tile.origin.x + id.x, tile.origin.y + id.y);
     output[id.y * tile.size.x + id.x] = vec4(clamp(color, vec3(0.0), vec3(1.0)), 1.0);
 }
 
+fn centre_key(x: u32, y: u32) -> SampleKey {
+    return SampleKey(y * frame.size.x + x, 0u, 0.0);
+}
+
 // Per pixel: (primitive, shadow mask, flags, t), integers bit-cast to f32.
+// Probes trace the pixel centre at the frame's time, sample 0.
 @compute @workgroup_size(WORKGROUP_SIZE, WORKGROUP_SIZE)
 fn probe_tile(@builtin(global_invocation_id) id: vec3<u32>) {
     if (id.x >= tile.size.x || id.y >= tile.size.y) {
         return;
     }
-    let r = trace_primary(pixel_ray(tile.origin.x + id.x, tile.origin.y + id.y));
+    let x = tile.origin.x + id.x;
+    let y = tile.origin.y + id.y;
+    let r = trace_primary(pixel_ray(x, y), centre_key(x, y));
     output[id.y * tile.size.x + id.x] =
         vec4(bitcast<f32>(r.hit.prim), bitcast<f32>(r.shadow_mask), bitcast<f32>(r.flags), r.hit.t);
 }
@@ -583,8 +901,9 @@ fn probe_pixel(@builtin(local_invocation_index) lane: u32) {
     if (lane != 0u) {
         return;
     }
+    let key = centre_key(tile.origin.x, tile.origin.y);
     let ray = pixel_ray(tile.origin.x, tile.origin.y);
-    let r = trace_primary(ray);
+    let r = trace_primary(ray, key);
     output[0] = vec4(bitcast<f32>(r.hit.prim), r.hit.t, r.hit.b1, r.hit.b2);
     output[1] = vec4(ray.dir, bitcast<f32>(r.flags));
     output[2] = vec4(r.color, bitcast<f32>(r.shadow_mask));
@@ -600,7 +919,7 @@ fn probe_pixel(@builtin(local_invocation_index) lane: u32) {
     output[6] = vec4(sp.kd, 0.0);
     output[7] = vec4(sp.ks, 0.0);
     for (var i = 0u; i < shown; i++) {
-        let term = light_term(sp, -ray.dir, lights[i]);
+        let term = light_term(sp, -ray.dir, i, 0u, key);
         let base = PATH_HEADER + PATH_PER_LIGHT * i;
         output[base] = vec4(term.origin, bitcast<f32>(term.blocker.prim));
         output[base + 1u] = vec4(term.ln, term.rv, term.spec, term.blocker.t);

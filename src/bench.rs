@@ -8,11 +8,12 @@ use std::time::{Duration, Instant};
 
 use crate::bvh::Bvh;
 use crate::camera::Camera;
-use crate::cpu::{self, Precision};
-use crate::gpu::{Context, ContextOptions, DeviceSelector, GpuRenderOptions, GpuRenderer};
+use crate::cpu::{self, CpuOptions, Precision};
+use crate::gpu::{Context, ContextOptions, DeviceSelector, GpuRenderOptions, GpuRenderer, Kernel};
+use crate::info::Features;
 use crate::layout::GpuScene;
 use crate::methods::Methods;
-use crate::scene::read_scene;
+use crate::scene::{read_scene, Effects};
 use crate::Error;
 
 #[derive(Clone, Debug)]
@@ -157,7 +158,15 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
         })?;
         report.device_creation = Some(start.elapsed());
         let renderer = GpuRenderer::new(&ctx)?;
-        report.pipeline_build = Some(renderer.pipeline_time);
+        let plain = GpuRenderOptions {
+            features: Features {
+                spheres: true,
+                triangles: true,
+                ..Features::default()
+            },
+            ..GpuRenderOptions::default()
+        };
+        report.pipeline_build = Some(renderer.prepare(&plain, Kernel::Render)?);
         report.device = Some(format!("{} ({})", ctx.info().name, ctx.info().driver));
         gpu = Some(renderer);
     }
@@ -183,7 +192,12 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
         };
         if let Some(renderer) = &gpu {
             let packed = GpuScene::pack(&scene, &bvh);
-            let opts = GpuRenderOptions::default();
+            let effects = Effects::resolve(&scene.settings);
+            let opts = GpuRenderOptions {
+                effects,
+                features: Features::of(&scene, &effects),
+                ..GpuRenderOptions::default()
+            };
             // One untimed render first: drivers compile lazily on first use.
             renderer.render(&packed, &camera, bg, &opts, &|_, _| {})?;
             result.gpu = repeat(n, || {
@@ -198,15 +212,13 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
         ] {
             if enabled {
                 *slot = repeat(n, || {
-                    cpu::render(
-                        &scene,
-                        &bvh,
-                        &camera,
-                        bg,
+                    let o = CpuOptions {
+                        background: bg,
                         precision,
-                        Methods::Robust,
-                        &|_, _| {},
-                    );
+                        effects: Effects::resolve(&scene.settings),
+                        ..CpuOptions::default()
+                    };
+                    cpu::render(&scene, &bvh, &camera, &o, &|_, _| {});
                     Ok(())
                 })?;
                 progress(&format!("{name}: cpu {precision:?} {:.1} ms", ms(*slot)));
@@ -385,20 +397,18 @@ pub fn run_hard(
                             (hard::Runner::Gpu, Some(r)) => {
                                 let opts = GpuRenderOptions {
                                     methods,
+                                    features: Features::of(scene, &Effects::default()),
                                     ..Default::default()
                                 };
                                 r.render(&packed, camera, bg, &opts, &|_, _| {})?;
                             }
                             _ => {
-                                cpu::render(
-                                    scene,
-                                    &bvh,
-                                    camera,
-                                    bg,
-                                    Precision::F32,
+                                let o = CpuOptions {
+                                    background: bg,
                                     methods,
-                                    &|_, _| {},
-                                );
+                                    ..CpuOptions::default()
+                                };
+                                cpu::render(scene, &bvh, camera, &o, &|_, _| {});
                             }
                         }
                         // The first round warms caches and lazy compiles.

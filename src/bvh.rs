@@ -11,8 +11,9 @@
 
 use glam::DVec3;
 
+use crate::info::Features;
 use crate::layout::{GpuBvhNode, BVH_MAX_DEPTH, SPHERE_BIT};
-use crate::scene::{Bounds, Scene};
+use crate::scene::{Bounds, Effects, Scene};
 
 /// Most primitives a leaf holds when the SAH would rather split further.
 const MAX_LEAF_SIZE: usize = 4;
@@ -38,13 +39,39 @@ struct Prim {
 
 impl Bvh {
     pub fn build(scene: &Scene) -> Bvh {
-        let spheres = scene.spheres.iter().enumerate().map(|(i, s)| Prim {
-            bounds: widen(s.bounds()),
-            centroid: s.center,
-            reference: i as u32 | SPHERE_BIT,
+        Bvh::build_swept(scene, 0.0)
+    }
+
+    /// The BVH a render of `scene` with `effects` traverses: swept over the
+    /// shutter interval when the scene has motion blur.
+    pub fn for_render(scene: &Scene, effects: &Effects) -> Bvh {
+        if Features::of(scene, effects).motion_blur {
+            Bvh::build_swept(scene, effects.shutter_seconds())
+        } else {
+            Bvh::build(scene)
+        }
+    }
+
+    /// A BVH whose boxes hold every primitive wherever it is during the
+    /// next `span` seconds (motion blur traces rays at times in the shutter
+    /// interval against this one tree). A moving primitive's box also gets
+    /// the f32 slack spheres have: the shader computes its position at a
+    /// time in f32, which can round past the f64 box.
+    pub fn build_swept(scene: &Scene, span: f64) -> Bvh {
+        let spheres = scene.spheres.iter().enumerate().map(|(i, s)| {
+            let bounds = widen(s.swept_bounds(span));
+            Prim {
+                bounds,
+                centroid: s.center + s.velocity * (0.5 * span),
+                reference: i as u32 | SPHERE_BIT,
+            }
         });
         let triangles = scene.triangles.iter().enumerate().map(|(i, t)| {
-            let bounds = t.bounds();
+            let bounds = if span > 0.0 && t.velocity != DVec3::ZERO {
+                widen(t.swept_bounds(span))
+            } else {
+                t.bounds()
+            };
             Prim {
                 bounds,
                 centroid: bounds.centroid(),

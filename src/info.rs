@@ -2,25 +2,81 @@
 
 use std::fmt;
 
-use crate::bvh::Bvh;
-use crate::scene::Scene;
+use glam::DVec3;
 
-/// The effects and primitive kinds a scene needs the renderer to simulate.
-/// Today the classic format calls only for what the base shader does; this
-/// is where area lights, reflection, motion and sampling will be detected.
+use crate::bvh::Bvh;
+use crate::scene::{Effects, LightShape, Scene};
+
+/// The effects and primitive kinds a scene, with its settings, needs the
+/// shader to simulate. It is also the key of the pipeline cache: each field
+/// is a WGSL `override` of the same name in upper case, resolved before
+/// SPIR-V is written, so a feature that is off is not in the shader at all.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct Features {
     pub spheres: bool,
     pub triangles: bool,
-    pub shadows: bool,
+    /// Reflection depth > 0 and some surface has a non-zero ks.
+    pub reflection: bool,
+    /// A light with a radius or edges: shadow rays sample its area.
+    pub area_lights: bool,
+    /// Something moves and the shutter is open: rays carry a time.
+    pub motion_blur: bool,
+    /// More than one primary sample per pixel (antialiasing, motion blur).
+    pub multisample: bool,
 }
 
 impl Features {
-    pub fn of(scene: &Scene) -> Features {
+    /// Every feature compiled in; effects are then switched by the run-time
+    /// settings alone (the "generic" shader the benchmarks compare against).
+    pub const ALL: Features = Features {
+        spheres: true,
+        triangles: true,
+        reflection: true,
+        area_lights: true,
+        motion_blur: true,
+        multisample: true,
+    };
+
+    pub fn of(scene: &Scene, effects: &Effects) -> Features {
+        let sphere_ks = scene.spheres.iter().any(|s| s.material.ks != DVec3::ZERO);
+        let triangle_ks = scene
+            .triangles
+            .iter()
+            .any(|t| t.vertices.iter().any(|v| v.material.ks != DVec3::ZERO));
         Features {
             spheres: !scene.spheres.is_empty(),
             triangles: !scene.triangles.is_empty(),
-            shadows: !scene.lights.is_empty() && scene.primitive_count() > 0,
+            reflection: effects.reflect_depth > 0 && (sphere_ks || triangle_ks),
+            area_lights: scene.lights.iter().any(|l| l.shape.is_area()),
+            motion_blur: effects.shutter > 0.0 && scene.has_motion(),
+            multisample: effects.spp > 1,
+        }
+    }
+
+    /// (override name, value) for naga's `process_overrides`.
+    pub fn overrides(&self) -> [(&'static str, bool); 6] {
+        [
+            ("SPHERES", self.spheres),
+            ("TRIANGLES", self.triangles),
+            ("REFLECTION", self.reflection),
+            ("AREA_LIGHTS", self.area_lights),
+            ("MOTION_BLUR", self.motion_blur),
+            ("MULTISAMPLE", self.multisample),
+        ]
+    }
+
+    /// Names of the features that are on, e.g. "spheres+reflection".
+    pub fn label(&self) -> String {
+        let on: Vec<String> = self
+            .overrides()
+            .iter()
+            .filter(|(_, on)| *on)
+            .map(|(name, _)| name.to_ascii_lowercase())
+            .collect();
+        if on.is_empty() {
+            "none".into()
+        } else {
+            on.join("+")
         }
     }
 }
@@ -28,6 +84,8 @@ impl Features {
 pub struct SceneInfo<'a> {
     pub scene: &'a Scene,
     pub bvh: &'a Bvh,
+    /// The scene's settings with any command-line overrides applied.
+    pub effects: Effects,
 }
 
 impl fmt::Display for SceneInfo<'_> {
@@ -49,11 +107,23 @@ impl fmt::Display for SceneInfo<'_> {
             )?;
         }
         for (i, l) in s.lights.iter().enumerate() {
-            writeln!(
+            let shape = match l.shape {
+                LightShape::Point => "point".to_string(),
+                LightShape::Sphere { radius } => format!("sphere radius {radius}"),
+                LightShape::Rect { edge_u, edge_v } => {
+                    format!("rectangle {} x {}", edge_u.length(), edge_v.length())
+                }
+            };
+            write!(
                 f,
-                "light {i:<5} at ({}, {}, {}) colour ({}, {}, {})",
+                "light {i:<5} {shape} at ({}, {}, {}) colour ({}, {}, {})",
                 l.position.x, l.position.y, l.position.z, l.color.x, l.color.y, l.color.z
             )?;
+            if l.velocity != DVec3::ZERO {
+                let v = l.velocity;
+                write!(f, " moving ({}, {}, {})/s", v.x, v.y, v.z)?;
+            }
+            writeln!(f)?;
         }
         writeln!(
             f,
@@ -61,19 +131,40 @@ impl fmt::Display for SceneInfo<'_> {
             self.bvh.nodes.len(),
             self.bvh.depth
         )?;
-        let feat = Features::of(s);
-        let mut calls: Vec<&str> = Vec::new();
+        let e = &self.effects;
+        writeln!(
+            f,
+            "settings    reflect {}, spp {}, shadow samples {}, shutter {}, seed {}, fps {}",
+            e.reflect_depth, e.spp, e.shadow_samples, e.shutter, e.seed, e.fps
+        )?;
+        let feat = Features::of(s, e);
+        let mut calls: Vec<String> = Vec::new();
         if feat.spheres {
-            calls.push("spheres");
+            calls.push("spheres".into());
         }
         if feat.triangles {
-            calls.push("triangles");
+            calls.push("triangles".into());
         }
-        if feat.shadows {
-            calls.push("point-light shadows");
+        if !s.lights.is_empty() && s.primitive_count() > 0 {
+            calls.push("shadow rays".into());
         }
-        calls.push("Phong shading");
-        write!(f, "calls for   {}", calls.join(", "))?;
+        calls.push("Phong shading".into());
+        if feat.reflection {
+            calls.push(format!("reflection (depth {})", e.reflect_depth));
+        }
+        if feat.area_lights {
+            calls.push(format!("area lights ({} shadow samples)", e.shadow_samples));
+        }
+        if feat.multisample {
+            calls.push(format!("antialiasing ({} samples per pixel)", e.spp));
+        }
+        if feat.motion_blur {
+            calls.push(format!("motion blur (shutter {})", e.shutter));
+        } else if s.has_motion() {
+            calls.push("motion (animation only: the shutter is closed)".into());
+        }
+        writeln!(f, "calls for   {}", calls.join(", "))?;
+        write!(f, "shader      {}", feat.label())?;
         if !s.warnings.is_empty() {
             write!(f, "\nwarnings    {}", s.warnings.len())?;
         }

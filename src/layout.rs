@@ -11,7 +11,8 @@ use bytemuck::{Pod, Zeroable};
 
 use crate::bvh::Bvh;
 use crate::camera::Camera;
-use crate::scene::Scene;
+use crate::info::Features;
+use crate::scene::{Effects, LightShape, Scene};
 
 /// Bit 31 of a primitive reference marks a sphere; the rest is the index.
 pub const SPHERE_BIT: u32 = 0x8000_0000;
@@ -40,7 +41,15 @@ pub struct GpuFrame {
     pub size: [u32; 2],
     pub node_count: u32,
     pub light_count: u32,
-    pub _pad: [u32; 2],
+    /// Where triangles start in the velocity buffer.
+    pub sphere_count: u32,
+    pub seed: u32,
+    /// Samples per pixel, shadow samples per area light, reflection bounces.
+    pub spp: u32,
+    pub shadow_samples: u32,
+    pub reflect_depth: u32,
+    /// Seconds the shutter is open; 0 unless the scene calls for motion blur.
+    pub shutter: f32,
 }
 
 /// Per-dispatch constants (uniform, binding 1): the tile this dispatch renders.
@@ -86,13 +95,27 @@ pub struct GpuVertexShading {
     pub _pad1: f32,
 }
 
+/// `GpuLight::kind` values.
+pub const LIGHT_POINT: u32 = 0;
+pub const LIGHT_SPHERE: u32 = 1;
+pub const LIGHT_RECT: u32 = 2;
+
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuLight {
-    /// xyz = position, w unused.
-    pub position: [f32; 4],
-    /// rgb = colour, a unused.
-    pub color: [f32; 4],
+    pub position: [f32; 3],
+    /// `LIGHT_POINT`, `LIGHT_SPHERE` or `LIGHT_RECT`.
+    pub kind: u32,
+    pub color: [f32; 3],
+    /// Sphere lights only.
+    pub radius: f32,
+    /// Rectangle lights only: the two edges, centred on `position`.
+    pub edge_u: [f32; 3],
+    pub _pad0: f32,
+    pub edge_v: [f32; 3],
+    pub _pad1: f32,
+    pub velocity: [f32; 3],
+    pub _pad2: f32,
 }
 
 #[repr(C)]
@@ -119,6 +142,9 @@ pub struct GpuScene {
     pub lights: Vec<GpuLight>,
     pub nodes: Vec<GpuBvhNode>,
     pub prim_refs: Vec<u32>,
+    /// xyz = velocity of each sphere, then each triangle; empty when
+    /// nothing moves.
+    pub velocities: Vec<[f32; 4]>,
     pub ambient: [f32; 3],
 }
 
@@ -167,11 +193,35 @@ impl GpuScene {
         let lights = scene
             .lights
             .iter()
-            .map(|l| GpuLight {
-                position: f4(l.position),
-                color: f4(l.color),
+            .map(|l| {
+                let mut g = GpuLight {
+                    position: f3(l.position),
+                    color: f3(l.color),
+                    velocity: f3(l.velocity),
+                    ..GpuLight::default()
+                };
+                match l.shape {
+                    LightShape::Point => g.kind = LIGHT_POINT,
+                    LightShape::Sphere { radius } => {
+                        g.kind = LIGHT_SPHERE;
+                        g.radius = radius as f32;
+                    }
+                    LightShape::Rect { edge_u, edge_v } => {
+                        g.kind = LIGHT_RECT;
+                        g.edge_u = f3(edge_u);
+                        g.edge_v = f3(edge_v);
+                    }
+                }
+                g
             })
             .collect();
+        let velocities = if scene.has_motion() {
+            let s = scene.spheres.iter().map(|s| f4(s.velocity));
+            s.chain(scene.triangles.iter().map(|t| f4(t.velocity)))
+                .collect()
+        } else {
+            Vec::new()
+        };
         GpuScene {
             spheres,
             triangles,
@@ -179,11 +229,20 @@ impl GpuScene {
             lights,
             nodes: bvh.nodes.clone(),
             prim_refs: bvh.prim_refs.clone(),
+            velocities,
             ambient: f3(scene.ambient),
         }
     }
 
-    pub fn frame(&self, camera: &Camera, background: [f32; 3]) -> GpuFrame {
+    /// `effects` as resolved for the scene; `features` decides whether the
+    /// shutter is open (only a scene with motion blur sees a non-zero one).
+    pub fn frame(
+        &self,
+        camera: &Camera,
+        background: [f32; 3],
+        effects: &Effects,
+        features: &Features,
+    ) -> GpuFrame {
         GpuFrame {
             background: [background[0], background[1], background[2], 1.0],
             ambient: [self.ambient[0], self.ambient[1], self.ambient[2], 0.0],
@@ -191,7 +250,16 @@ impl GpuScene {
             size: [camera.width, camera.height],
             node_count: self.nodes.len() as u32,
             light_count: self.lights.len() as u32,
-            _pad: [0; 2],
+            sphere_count: self.spheres.len() as u32,
+            seed: effects.seed,
+            spp: effects.spp,
+            shadow_samples: effects.shadow_samples,
+            reflect_depth: effects.reflect_depth,
+            shutter: if features.motion_blur {
+                effects.shutter_seconds() as f32
+            } else {
+                0.0
+            },
         }
     }
 }

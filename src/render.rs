@@ -1,16 +1,17 @@
 //! Rendering a parsed scene with a chosen backend: the library's front door.
 
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use crate::bvh::Bvh;
 use crate::camera::{Camera, DEFAULT_HEIGHT, DEFAULT_WIDTH};
-use crate::cpu::{self, Precision};
+use crate::cpu::{self, CpuOptions, Precision};
 use crate::framebuffer::Framebuffer;
 use crate::gpu::{Context, ContextOptions, DeviceSelector, GpuRenderOptions, GpuRenderer};
+use crate::info::Features;
 use crate::layout::GpuScene;
 use crate::methods::Methods;
 use crate::probe::{PathRecord, ProbeImage};
-use crate::scene::Scene;
+use crate::scene::{Effects, Scene, Settings};
 use crate::timing::Timings;
 use crate::Error;
 
@@ -38,6 +39,11 @@ pub struct RenderOptions {
     /// Intersection and offset methods on either backend; overrides
     /// `gpu.methods`.
     pub methods: Methods,
+    /// Overrides of the scene's own settings (`--spp`, `--reflect`, ...).
+    pub settings: Settings,
+    /// GPU: compile every effect in and switch them by the settings alone
+    /// (the generic shader), instead of specialising for the scene.
+    pub generic: bool,
     pub gpu: GpuRenderOptions,
 }
 
@@ -52,7 +58,25 @@ impl Default for RenderOptions {
             precision: Precision::F32,
             validation: false,
             methods: Methods::Robust,
+            settings: Settings::default(),
+            generic: false,
             gpu: GpuRenderOptions::default(),
+        }
+    }
+}
+
+impl RenderOptions {
+    /// The scene's settings with these options' overrides applied.
+    pub fn effects(&self, scene: &Scene) -> Effects {
+        Effects::resolve(&self.settings.or(scene.settings))
+    }
+
+    /// What the GPU shader is specialised for when rendering `scene`.
+    pub fn features(&self, scene: &Scene) -> Features {
+        if self.generic {
+            Features::ALL
+        } else {
+            Features::of(scene, &self.effects(scene))
         }
     }
 }
@@ -68,26 +92,33 @@ pub struct RenderOutput {
     pub validation_messages: u32,
 }
 
-/// Where the work runs, chosen once per call from `RenderOptions`.
+/// Where the work runs, chosen once from `RenderOptions`.
 enum Engine {
-    Gpu {
-        ctx: Context,
-        renderer: GpuRenderer,
-        options: GpuRenderOptions,
-    },
+    Gpu { ctx: Context, renderer: GpuRenderer },
     Cpu(Precision),
 }
 
-struct Setup {
-    camera: Camera,
-    bvh: Bvh,
+/// A backend set up once (device, pipeline cache) that renders any number of
+/// scenes: the frames of an animation reuse its pipelines.
+pub struct Renderer {
+    options: RenderOptions,
     engine: Engine,
-    timings: Timings,
+    /// Device creation, reported with the first render.
+    setup_timings: std::sync::Mutex<Option<Timings>>,
     note: Option<String>,
 }
 
-impl Setup {
-    fn new(scene: &Scene, options: &RenderOptions) -> Result<Setup, Error> {
+/// Per scene: the camera and the BVH (over the shutter interval when the
+/// scene has motion blur).
+struct Prepared {
+    camera: Camera,
+    bvh: Bvh,
+    effects: Effects,
+    features: Features,
+}
+
+impl Renderer {
+    pub fn new(options: &RenderOptions) -> Result<Renderer, Error> {
         if options.width == 0 || options.height == 0 {
             return Err(Error::InvalidOption(format!(
                 "image size {}x{} has no pixels",
@@ -99,9 +130,7 @@ impl Setup {
                 "--precision f64 exists on the CPU reference only; use --backend cpu".into(),
             ));
         }
-        let camera = Camera::new(options.width, options.height);
         let mut timings = Timings::default();
-        let bvh = timings.time("bvh", || Bvh::build(scene));
         let want_gpu = match (options.backend, options.precision) {
             (Backend::Cpu, _) | (Backend::Auto, Precision::F64) => false,
             (Backend::Gpu, _) | (Backend::Auto, Precision::F32) => true,
@@ -121,16 +150,7 @@ impl Setup {
                 Ok(ctx) => {
                     timings.add("device", start.elapsed());
                     let renderer = GpuRenderer::new(&ctx)?;
-                    timings.add("pipeline", renderer.pipeline_time);
-                    let gpu_options = GpuRenderOptions {
-                        methods: options.methods,
-                        ..options.gpu
-                    };
-                    engine = Engine::Gpu {
-                        ctx,
-                        renderer,
-                        options: gpu_options,
-                    };
+                    engine = Engine::Gpu { ctx, renderer };
                 }
                 Err(e) if options.backend == Backend::Auto => {
                     note = Some(format!(
@@ -140,16 +160,28 @@ impl Setup {
                 Err(e) => return Err(e.into()),
             }
         }
-        Ok(Setup {
-            camera,
-            bvh,
+        Ok(Renderer {
+            options: options.clone(),
             engine,
-            timings,
+            setup_timings: std::sync::Mutex::new(Some(timings)),
             note,
         })
     }
 
-    fn renderer_name(&self) -> String {
+    pub fn options(&self) -> &RenderOptions {
+        &self.options
+    }
+
+    pub fn note(&self) -> Option<&str> {
+        self.note.as_deref()
+    }
+
+    pub fn is_gpu(&self) -> bool {
+        matches!(self.engine, Engine::Gpu { .. })
+    }
+
+    /// What renders, e.g. "GPU: llvmpipe (cpu, ...)" or "CPU reference (f32, 2 threads)".
+    pub fn name(&self) -> String {
         match &self.engine {
             Engine::Gpu { ctx, .. } => {
                 let info = ctx.info();
@@ -168,71 +200,159 @@ impl Setup {
         }
     }
 
-    fn probed<T>(self, value: T) -> Probed<T> {
-        Probed {
-            value,
-            renderer: self.renderer_name(),
-            validation_messages: self.validation_messages(),
-            note: self.note,
-        }
-    }
-
-    fn validation_messages(&self) -> u32 {
+    pub fn validation_messages(&self) -> u32 {
         match &self.engine {
             Engine::Gpu { ctx, .. } => ctx.validation_messages(),
             Engine::Cpu(_) => 0,
         }
     }
+
+    fn prepare(&self, scene: &Scene, timings: &mut Timings) -> Prepared {
+        let effects = self.options.effects(scene);
+        let features = self.options.features(scene);
+        let bvh = timings.time("bvh", || Bvh::for_render(scene, &effects));
+        Prepared {
+            camera: Camera::new(self.options.width, self.options.height),
+            bvh,
+            effects,
+            features,
+        }
+    }
+
+    fn gpu_options(&self, p: &Prepared) -> GpuRenderOptions {
+        GpuRenderOptions {
+            methods: self.options.methods,
+            effects: p.effects,
+            features: p.features,
+            ..self.options.gpu
+        }
+    }
+
+    fn cpu_options(&self, p: &Prepared, precision: Precision) -> CpuOptions {
+        CpuOptions {
+            background: self.options.background,
+            precision,
+            methods: self.options.methods,
+            effects: p.effects,
+        }
+    }
+
+    /// Builds the GPU pipeline `scene` calls for (no-op on the CPU); returns
+    /// its build time, zero when it was already built.
+    pub fn prepare_pipeline(&self, scene: &Scene) -> Result<Duration, Error> {
+        match &self.engine {
+            Engine::Gpu { renderer, .. } => {
+                let p = self.prepare(scene, &mut Timings::default());
+                Ok(renderer.prepare(&self.gpu_options(&p), crate::gpu::Kernel::Render)?)
+            }
+            Engine::Cpu(_) => Ok(Duration::ZERO),
+        }
+    }
+
+    /// Renders `scene`; `progress(done, total)` counts tiles (GPU) or rows (CPU).
+    pub fn render(
+        &self,
+        scene: &Scene,
+        progress: &(dyn Fn(u64, u64) + Sync),
+    ) -> Result<RenderOutput, Error> {
+        let mut timings = self
+            .setup_timings
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .take()
+            .unwrap_or_default();
+        let p = self.prepare(scene, &mut timings);
+        let framebuffer = match &self.engine {
+            Engine::Gpu { renderer, .. } => {
+                let packed = timings.time("pack", || GpuScene::pack(scene, &p.bvh));
+                let (framebuffer, gpu_timings) = renderer.render(
+                    &packed,
+                    &p.camera,
+                    self.options.background,
+                    &self.gpu_options(&p),
+                    progress,
+                )?;
+                timings.extend(&gpu_timings);
+                framebuffer
+            }
+            Engine::Cpu(precision) => {
+                let start = Instant::now();
+                let options = self.cpu_options(&p, *precision);
+                let framebuffer = cpu::render(scene, &p.bvh, &p.camera, &options, progress);
+                timings.add("cpu render", start.elapsed());
+                framebuffer
+            }
+        };
+        Ok(RenderOutput {
+            framebuffer,
+            renderer: self.name(),
+            validation_messages: self.validation_messages(),
+            timings,
+            note: self.note.clone(),
+        })
+    }
+
+    /// Every pixel's primary hit and shadow verdicts (pixel centres, sample 0).
+    pub fn probe(&self, scene: &Scene) -> Result<ProbeImage, Error> {
+        let p = self.prepare(scene, &mut Timings::default());
+        Ok(match &self.engine {
+            Engine::Gpu { renderer, .. } => renderer.probe(
+                &GpuScene::pack(scene, &p.bvh),
+                &p.camera,
+                &self.gpu_options(&p),
+            )?,
+            Engine::Cpu(precision) => {
+                cpu::probe(scene, &p.bvh, &p.camera, &self.cpu_options(&p, *precision))
+            }
+        })
+    }
+
+    /// The path of pixel (x, y): hit, surface, each light's shadow verdict
+    /// and Phong terms.
+    pub fn pixel_path(&self, scene: &Scene, pixel: [u32; 2]) -> Result<PathRecord, Error> {
+        let o = &self.options;
+        if pixel[0] >= o.width || pixel[1] >= o.height {
+            return Err(Error::InvalidOption(format!(
+                "pixel {},{} is outside the {}x{} image (x counts from 0 at the left, y from 0 at the top)",
+                pixel[0], pixel[1], o.width, o.height
+            )));
+        }
+        let p = self.prepare(scene, &mut Timings::default());
+        Ok(match &self.engine {
+            Engine::Gpu { renderer, .. } => renderer.pixel_path(
+                &GpuScene::pack(scene, &p.bvh),
+                &p.camera,
+                o.background,
+                pixel,
+                &self.gpu_options(&p),
+            )?,
+            Engine::Cpu(precision) => cpu::pixel_path(
+                scene,
+                &p.bvh,
+                &p.camera,
+                &self.cpu_options(&p, *precision),
+                pixel,
+            ),
+        })
+    }
+
+    fn probed<T>(&self, value: T) -> Probed<T> {
+        Probed {
+            value,
+            renderer: self.name(),
+            validation_messages: self.validation_messages(),
+            note: self.note.clone(),
+        }
+    }
 }
 
-/// Renders `scene`; `progress(done, total)` counts tiles (GPU) or rows (CPU).
+/// Renders `scene` once (a `Renderer` set up for this call only).
 pub fn render(
     scene: &Scene,
     options: &RenderOptions,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<RenderOutput, Error> {
-    let mut setup = Setup::new(scene, options)?;
-    let framebuffer = match &setup.engine {
-        Engine::Gpu {
-            renderer,
-            options: gpu_options,
-            ..
-        } => {
-            let packed = setup
-                .timings
-                .time("pack", || GpuScene::pack(scene, &setup.bvh));
-            let (framebuffer, gpu_timings) = renderer.render(
-                &packed,
-                &setup.camera,
-                options.background,
-                gpu_options,
-                progress,
-            )?;
-            setup.timings.extend(&gpu_timings);
-            framebuffer
-        }
-        Engine::Cpu(precision) => {
-            let start = Instant::now();
-            let framebuffer = cpu::render(
-                scene,
-                &setup.bvh,
-                &setup.camera,
-                options.background,
-                *precision,
-                options.methods,
-                progress,
-            );
-            setup.timings.add("cpu render", start.elapsed());
-            framebuffer
-        }
-    };
-    Ok(RenderOutput {
-        framebuffer,
-        renderer: setup.renderer_name(),
-        validation_messages: setup.validation_messages(),
-        timings: setup.timings,
-        note: setup.note,
-    })
+    Renderer::new(options)?.render(scene, progress)
 }
 
 /// A probe result and what produced it.
@@ -246,63 +366,18 @@ pub struct Probed<T> {
 
 /// Every pixel's primary hit and shadow verdicts on the chosen backend.
 pub fn probe(scene: &Scene, options: &RenderOptions) -> Result<Probed<ProbeImage>, Error> {
-    let setup = Setup::new(scene, options)?;
-    let value = match &setup.engine {
-        Engine::Gpu {
-            renderer,
-            options: gpu_options,
-            ..
-        } => renderer.probe(
-            &GpuScene::pack(scene, &setup.bvh),
-            &setup.camera,
-            gpu_options,
-        )?,
-        Engine::Cpu(precision) => cpu::probe(
-            scene,
-            &setup.bvh,
-            &setup.camera,
-            *precision,
-            options.methods,
-        ),
-    };
-    Ok(setup.probed(value))
+    let r = Renderer::new(options)?;
+    let value = r.probe(scene)?;
+    Ok(r.probed(value))
 }
 
-/// The path of pixel (x, y) on the chosen backend: hit, surface, each light's
-/// shadow verdict and Phong terms.
+/// The path of pixel (x, y) on the chosen backend.
 pub fn pixel_path(
     scene: &Scene,
     options: &RenderOptions,
     pixel: [u32; 2],
 ) -> Result<Probed<PathRecord>, Error> {
-    if pixel[0] >= options.width || pixel[1] >= options.height {
-        return Err(Error::InvalidOption(format!(
-            "pixel {},{} is outside the {}x{} image (x counts from 0 at the left, y from 0 at the top)",
-            pixel[0], pixel[1], options.width, options.height
-        )));
-    }
-    let setup = Setup::new(scene, options)?;
-    let value = match &setup.engine {
-        Engine::Gpu {
-            renderer,
-            options: gpu_options,
-            ..
-        } => renderer.pixel_path(
-            &GpuScene::pack(scene, &setup.bvh),
-            &setup.camera,
-            options.background,
-            pixel,
-            gpu_options,
-        )?,
-        Engine::Cpu(precision) => cpu::pixel_path(
-            scene,
-            &setup.bvh,
-            &setup.camera,
-            options.background,
-            *precision,
-            options.methods,
-            pixel,
-        ),
-    };
-    Ok(setup.probed(value))
+    let r = Renderer::new(options)?;
+    let value = r.pixel_path(scene, pixel)?;
+    Ok(r.probed(value))
 }

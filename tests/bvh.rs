@@ -57,6 +57,7 @@ fn random_scene(seed: u64, spheres: usize, triangles: usize) -> Scene {
             center: rng.point(),
             radius: rng.in_range(0.05, 0.5),
             material: material(&mut rng),
+            velocity: DVec3::ZERO,
         });
     }
     for _ in 0..triangles {
@@ -73,13 +74,11 @@ fn random_scene(seed: u64, spheres: usize, triangles: usize) -> Scene {
         };
         scene.triangles.push(Triangle {
             vertices: [v(&mut rng), v(&mut rng), v(&mut rng)],
+            velocity: DVec3::ZERO,
         });
     }
     for p in [DVec3::new(-5.0, 6.0, 0.0), DVec3::new(4.0, 2.0, -3.0)] {
-        scene.lights.push(Light {
-            position: p,
-            color: DVec3::splat(0.6),
-        });
+        scene.lights.push(Light::point(p, DVec3::splat(0.6)));
     }
     scene
 }
@@ -157,6 +156,7 @@ fn coincident_primitives_still_split_into_small_leaves() {
         center: DVec3::new(0.0, 0.0, -5.0),
         radius: 1.0,
         material: material(&mut Lcg(1)),
+        velocity: DVec3::ZERO,
     };
     scene.spheres = vec![s; 200];
     let bvh = Bvh::build(&scene);
@@ -196,24 +196,13 @@ fn bvh_traversal_equals_brute_force() {
         let bvh = Bvh::build(&scene);
         let brute = single_leaf(&scene, &bvh);
         for precision in [Precision::F32, Precision::F64] {
-            let a = glint::cpu::render(
-                &scene,
-                &bvh,
-                &camera,
-                WHITE,
+            let options = glint::cpu::CpuOptions {
+                background: WHITE,
                 precision,
-                glint::methods::Methods::Robust,
-                &|_, _| {},
-            );
-            let b = glint::cpu::render(
-                &scene,
-                &brute,
-                &camera,
-                WHITE,
-                precision,
-                glint::methods::Methods::Robust,
-                &|_, _| {},
-            );
+                ..Default::default()
+            };
+            let a = glint::cpu::render(&scene, &bvh, &camera, &options, &|_, _| {});
+            let b = glint::cpu::render(&scene, &brute, &camera, &options, &|_, _| {});
             assert_same_image(&format!("bvh-vs-brute-{seed}-cpu-{precision:?}"), &a, &b);
         }
         if let Some(gpu) = gpu() {

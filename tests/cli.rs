@@ -258,7 +258,20 @@ fn info_reports_counts_and_features() {
     assert!(out.contains("spheres     6"), "{out}");
     assert!(out.contains("lights      2"), "{out}");
     assert!(
-        out.contains("calls for   spheres, triangles, point-light shadows"),
+        out.contains("calls for   spheres, triangles, shadow rays, Phong shading\n"),
+        "{out}"
+    );
+    assert!(out.contains("shader      spheres+triangles\n"), "{out}");
+    // Command-line settings turn effects on, and the shader follows.
+    let o = glint(
+        &["info", &showcase(), "--spp", "4", "--reflect", "2"],
+        d.path(),
+    );
+    let out = stdout(&o);
+    assert!(out.contains("reflection (depth 2)"), "{out}");
+    assert!(out.contains("antialiasing (4 samples per pixel)"), "{out}");
+    assert!(
+        out.contains("shader      spheres+triangles+reflection+multisample\n"),
         "{out}"
     );
 }

@@ -8,20 +8,6 @@ use glint::compare::compare_framebuffers;
 use glint::cpu::Precision;
 use glint::scene::Scene;
 
-/// Per-channel difference (levels, 0-255) above which a pixel counts as differing.
-///
-/// Set on lavapipe (Mesa 22.3.6, LLVM 15.0.6) on 2026-11-22: the measured
-/// worst pixel over all classic scenes at 640x480 is 0.0032 levels (spheres,
-/// shininess 200), from the device's own pow/inverseSqrt and rounding. The
-/// threshold leaves ~80x room for other drivers' pow (exp2(y*log2 x) with
-/// approximate log2) and FMA contraction, yet is well under one 8-bit step.
-const THRESHOLD_LEVELS: f64 = 0.25;
-/// Pixels allowed over the threshold: where a rounding difference flips a
-/// hit/miss or shadow decision exactly on a silhouette or shadow edge.
-/// Measured on lavapipe: none. Allowed: 1 in 20,000 pixels (15 at 640x480),
-/// for devices that contract to FMA where lavapipe does not.
-const MAX_DIFFERING_FRACTION: f64 = 5e-5;
-
 fn check(name: &str, scene: &Scene, w: u32, h: u32) {
     let cpu = render_cpu(scene, w, h, Precision::F32, WHITE);
     assert_finite(name, &cpu);

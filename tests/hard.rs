@@ -221,19 +221,18 @@ fn nan_ray_terminates() {
     use glint::cpu::trace::{make_ray, traverse, CpuScene, NO_HIT};
     let c = case("quad_grid");
     let bvh = Bvh::build(&c.scene);
-    let scene = CpuScene::<f32>::new(
-        &c.scene,
-        &bvh,
-        &Camera::new(8, 8),
-        [1.0; 3],
-        Methods::Robust,
-    );
+    let scene = CpuScene::<f32>::new(&c.scene, &bvh, &Camera::new(8, 8), &Default::default());
     for dir in [
         glam::Vec3::new(f32::NAN, 0.0, -1.0),
         glam::Vec3::NAN,
         glam::Vec3::ZERO,
     ] {
-        let hit = traverse(&scene, &make_ray(glam::Vec3::ZERO, dir), f32::MAX, false);
+        let hit = traverse(
+            &scene,
+            &make_ray(glam::Vec3::ZERO, dir, 0.0),
+            f32::MAX,
+            false,
+        );
         assert_eq!(hit.prim, NO_HIT, "direction {dir:?}");
     }
 }
@@ -256,15 +255,7 @@ fn pixel_paths_agree_across_backends() {
                 .renderer
                 .pixel_path(&packed, &camera, [1.0; 3], pixel, &Default::default())
                 .expect("GPU path");
-            let cpu = glint::cpu::pixel_path(
-                &c.scene,
-                &bvh,
-                &camera,
-                [1.0; 3],
-                Precision::F32,
-                Methods::Robust,
-                pixel,
-            );
+            let cpu = glint::cpu::pixel_path(&c.scene, &bvh, &camera, &Default::default(), pixel);
             let at = format!("{name} {pixel:?}");
             assert_eq!(g.prim, cpu.prim, "{at}");
             assert_eq!(g.shadow_mask, cpu.shadow_mask, "{at}");

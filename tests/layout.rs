@@ -58,7 +58,12 @@ fn structs_match() {
             size,
             node_count,
             light_count,
-            _pad
+            sphere_count,
+            seed,
+            spp,
+            shadow_samples,
+            reflect_depth,
+            shutter
         ]
     );
     check_struct!(m, "Tile", GpuTile, [origin, size]);
@@ -75,7 +80,12 @@ fn structs_match() {
         GpuVertexShading,
         [normal, shininess, kd, _pad0, ks, _pad1]
     );
-    check_struct!(m, "Light", GpuLight, [position, color]);
+    check_struct!(
+        m,
+        "Light",
+        GpuLight,
+        [position, kind, color, radius, edge_u, _pad0, edge_v, _pad1, velocity, _pad2]
+    );
     check_struct!(m, "BvhNode", GpuBvhNode, [min, right_or_first, max, count]);
 }
 
@@ -91,6 +101,7 @@ fn bindings_match_the_pipeline_and_array_strides_match_rust() {
         (6, size_of::<GpuBvhNode>()),
         (7, size_of::<u32>()),
         (8, 16),
+        (9, 16),
     ];
     let mut seen = Vec::new();
     for (_, var) in m.global_variables.iter() {
@@ -160,6 +171,23 @@ fn shared_constants_match() {
     );
     assert_eq!(constant(&m, "PATH_HEADER"), Literal::U32(PATH_HEADER));
     assert_eq!(constant(&m, "PATH_PER_LIGHT"), Literal::U32(PATH_PER_LIGHT));
+    assert_eq!(constant(&m, "LIGHT_POINT"), Literal::U32(LIGHT_POINT));
+    assert_eq!(constant(&m, "LIGHT_SPHERE"), Literal::U32(LIGHT_SPHERE));
+    assert_eq!(constant(&m, "LIGHT_RECT"), Literal::U32(LIGHT_RECT));
+    use glint::cpu::sample;
+    assert_eq!(
+        constant(&m, "STREAM_PIXEL"),
+        Literal::U32(sample::STREAM_PIXEL)
+    );
+    assert_eq!(
+        constant(&m, "STREAM_TIME"),
+        Literal::U32(sample::STREAM_TIME)
+    );
+    assert_eq!(
+        constant(&m, "STREAM_LIGHT"),
+        Literal::U32(sample::STREAM_LIGHT)
+    );
+    assert_eq!(constant(&m, "ROTATION"), Literal::U32(sample::ROTATION));
     // Compared as bits: the CPU f32 twin must use the shader's exact values.
     let pairs = [
         ("T_INF", <f32 as Real>::T_INF),

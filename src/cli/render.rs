@@ -8,10 +8,11 @@ use glint::cpu::Precision;
 use glint::framebuffer::{write_image, DEFAULT_JPEG_QUALITY};
 use glint::gpu::DeviceSelector;
 use glint::methods::Methods;
-use glint::render::{pixel_path, render, Backend, RenderOptions};
+use glint::render::{pixel_path, render, Backend, RenderOptions, Renderer};
+use glint::scene::Scene;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use super::{print_warnings, BackendArg, MethodsArg, PrecisionArg};
+use super::{print_warnings, BackendArg, EffectArgs, MethodsArg, PrecisionArg};
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
@@ -62,6 +63,41 @@ pub struct RenderArgs {
     /// methods fix.
     #[arg(long, value_enum, default_value = "robust")]
     methods: MethodsArg,
+    #[command(flatten)]
+    effects: EffectArgs,
+    /// Render an animation of N frames (frame i at time i / fps) into the
+    /// directory OUT (default: <scene stem>_frames), as 000.jpg, 001.jpg, ...
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=1_000_000), conflicts_with = "pixel")]
+    frames: Option<u32>,
+    /// With --frames: only frames FIRST to LAST (inclusive, counted from 0),
+    /// to split an animation across machines.
+    #[arg(long, value_name = "FIRST-LAST", value_parser = parse_range, requires = "frames")]
+    frame_range: Option<[u32; 2]>,
+    /// Image format of animation frames.
+    #[arg(long, value_enum, default_value = "jpg", requires = "frames")]
+    frame_format: FrameFormat,
+    /// GPU: use the generic shader (every effect compiled in, switched by the
+    /// settings) instead of one specialised for the scene; for comparisons.
+    #[arg(long)]
+    generic_shader: bool,
+}
+
+#[derive(Clone, Copy, Debug, clap::ValueEnum)]
+enum FrameFormat {
+    Jpg,
+    Png,
+}
+
+fn parse_range(s: &str) -> Result<[u32; 2], String> {
+    let parsed = s
+        .split_once('-')
+        .and_then(|(a, b)| Some([a.trim().parse().ok()?, b.trim().parse().ok()?]));
+    match parsed {
+        Some([a, b]) if a <= b => Ok([a, b]),
+        _ => Err(format!(
+            "expected FIRST-LAST with FIRST <= LAST (e.g. 0-99), found `{s}`"
+        )),
+    }
 }
 
 fn parse_pixel(s: &str) -> Result<[u32; 2], String> {
@@ -101,7 +137,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
     let parse_time = parse_start.elapsed();
     print_warnings(&scene);
 
-    let (out, defaulted) = match args.out.or(args.output) {
+    let (out, defaulted) = match args.out.clone().or(args.output.clone()) {
         Some(p) => (p, false),
         None => (default_output(&args.scene), true),
     };
@@ -124,11 +160,23 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
             MethodsArg::Robust => Methods::Robust,
             MethodsArg::Naive => Methods::Naive,
         },
+        settings: args.effects.settings(),
+        generic: args.generic_shader,
         gpu: glint::gpu::GpuRenderOptions {
             tile_size: args.tile,
             ..Default::default()
         },
     };
+    if let Some(frames) = args.frames {
+        let dir = match &out {
+            p if !defaulted => p.clone(),
+            _ => {
+                let stem = args.scene.file_stem().unwrap_or(args.scene.as_os_str());
+                PathBuf::from(format!("{}_frames", stem.to_string_lossy()))
+            }
+        };
+        return animate(&scene, &options, &args, frames, &dir);
+    }
     if let Some(pixel) = args.pixel {
         let start = Instant::now();
         let probed = pixel_path(&scene, &options, pixel)?;
@@ -215,5 +263,89 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
     if args.verbose {
         println!("timings:\n{timings}");
     }
+    Ok(ExitCode::SUCCESS)
+}
+
+/// Renders frames of an animation with one `Renderer` (device and pipelines
+/// built once), a progress bar over frames, each frame written as it is done.
+fn animate(
+    scene: &Scene,
+    options: &RenderOptions,
+    args: &RenderArgs,
+    frames: u32,
+    dir: &Path,
+) -> anyhow::Result<ExitCode> {
+    let [first, last] = args.frame_range.unwrap_or([0, frames - 1]);
+    if last >= frames {
+        anyhow::bail!(
+            "--frame-range {first}-{last} goes past the last frame of --frames {frames} \
+             (frames count from 0, so the last is {})",
+            frames - 1
+        );
+    }
+    if dir
+        .extension()
+        .is_some_and(|e| e == "jpg" || e == "png" || e == "jpeg")
+    {
+        anyhow::bail!(
+            "with --frames, the output is a directory for 000.jpg, 001.jpg, ...; \
+             found the image name {}",
+            dir.display()
+        );
+    }
+    std::fs::create_dir_all(dir)
+        .with_context(|| format!("creating the frame directory {}", dir.display()))?;
+    let renderer = Renderer::new(options)?;
+    if let Some(note) = renderer.note() {
+        eprintln!("note: {note}");
+    }
+    let effects = options.effects(scene);
+    if !scene.has_motion() {
+        eprintln!(
+            "note: nothing in {} moves (no `vel:`); every frame is the same image",
+            args.scene.display()
+        );
+    }
+    let digits = (frames - 1).to_string().len().max(3);
+    let ext = match args.frame_format {
+        FrameFormat::Jpg => "jpg",
+        FrameFormat::Png => "png",
+    };
+    let bar = ProgressBar::new(u64::from(last - first + 1));
+    bar.set_style(
+        ProgressStyle::with_template(
+            "{spinner} frames [{bar:30}] {pos}/{len} {elapsed} (eta {eta})",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
+    );
+    let start = Instant::now();
+    for i in first..=last {
+        let at = scene.at_time(effects.frame_time(i));
+        let output = renderer.render(&at, &|_, _| {})?;
+        let path = dir.join(format!("{i:0digits$}.{ext}"));
+        write_image(&output.framebuffer.to_rgb8(), &path, args.quality)
+            .with_context(|| format!("writing frame {i}"))?;
+        if args.verbose {
+            bar.println(format!("{}:\n{}", path.display(), output.timings));
+        }
+        bar.inc(1);
+    }
+    bar.finish_and_clear();
+    if renderer.validation_messages() > 0 {
+        eprintln!(
+            "warning: the Vulkan validation layer reported {} message(s)",
+            renderer.validation_messages()
+        );
+    }
+    println!(
+        "wrote frames {first:0digits$}..{last:0digits$}.{ext} to {} ({}x{}, {}, {:.2} s, {} fps scene time)",
+        dir.display(),
+        args.width,
+        args.height,
+        renderer.name(),
+        start.elapsed().as_secs_f64(),
+        effects.fps
+    );
     Ok(ExitCode::SUCCESS)
 }

@@ -3,6 +3,7 @@
 //! or f64 (ground truth).
 
 mod real;
+pub mod sample;
 pub mod trace;
 
 pub use real::Real;
@@ -14,8 +15,10 @@ use crate::camera::Camera;
 use crate::framebuffer::Framebuffer;
 use crate::methods::Methods;
 use crate::probe::{PathLight, PathRecord, PathSurface, ProbeImage, ProbePixel};
-use crate::scene::Scene;
-use trace::{light_term, pixel_ray, surface_point, trace_primary, CpuScene};
+use crate::scene::{Effects, Scene};
+use trace::{
+    centre_key, light_term, pixel_color, pixel_ray, surface_point, trace_primary, CpuScene,
+};
 
 /// Arithmetic precision of the CPU reference.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
@@ -27,25 +30,48 @@ pub enum Precision {
     F64,
 }
 
+/// What the CPU reference renders with, besides the scene and camera.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CpuOptions {
+    pub background: [f32; 3],
+    pub precision: Precision,
+    pub methods: Methods,
+    pub effects: Effects,
+}
+
+impl Default for CpuOptions {
+    fn default() -> Self {
+        CpuOptions {
+            background: [1.0; 3],
+            precision: Precision::F32,
+            methods: Methods::Robust,
+            effects: Effects::default(),
+        }
+    }
+}
+
 /// Renders the whole image on the CPU. `progress(rows_done, rows_total)` is
-/// called from worker threads as rows finish.
+/// called from worker threads as rows finish. The BVH must be built for the
+/// shutter interval when the scene has motion blur (`Bvh::build_swept`).
 pub fn render(
     scene: &Scene,
     bvh: &Bvh,
     camera: &Camera,
-    background: [f32; 3],
-    precision: Precision,
-    methods: Methods,
+    options: &CpuOptions,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Framebuffer {
-    let pixels = match precision {
+    let pixels = match options.precision {
         Precision::F32 => {
-            let s = CpuScene::<f32>::new(scene, bvh, camera, background, methods);
-            per_pixel(&s, progress, |r| f32::v3_to_f32(f32::clamp01(r.color)))
+            let s = CpuScene::<f32>::new(scene, bvh, camera, options);
+            per_pixel(&s, progress, |s, x, y| {
+                f32::v3_to_f32(f32::clamp01(pixel_color(s, x, y)))
+            })
         }
         Precision::F64 => {
-            let s = CpuScene::<f64>::new(scene, bvh, camera, background, methods);
-            per_pixel(&s, progress, |r| f64::v3_to_f32(f64::clamp01(r.color)))
+            let s = CpuScene::<f64>::new(scene, bvh, camera, options);
+            per_pixel(&s, progress, |s, x, y| {
+                f64::v3_to_f32(f64::clamp01(pixel_color(s, x, y)))
+            })
         }
     };
     Framebuffer {
@@ -56,14 +82,9 @@ pub fn render(
 }
 
 /// Each pixel's primary hit and shadow verdicts, as the shader's `probe_tile`.
-pub fn probe(
-    scene: &Scene,
-    bvh: &Bvh,
-    camera: &Camera,
-    precision: Precision,
-    methods: Methods,
-) -> ProbeImage {
-    fn record<R: Real>(r: &trace::PixelResult<R>) -> ProbePixel {
+pub fn probe(scene: &Scene, bvh: &Bvh, camera: &Camera, options: &CpuOptions) -> ProbeImage {
+    fn record<R: Real>(s: &CpuScene<R>, x: u32, y: u32) -> ProbePixel {
+        let r = trace_primary(s, &pixel_ray(s, x, y), &centre_key(s, x, y));
         ProbePixel {
             prim: r.hit.prim,
             shadow_mask: r.shadow_mask,
@@ -72,15 +93,21 @@ pub fn probe(
         }
     }
     let none = &|_, _| {};
-    let pixels = match precision {
-        Precision::F32 => {
-            let s = CpuScene::<f32>::new(scene, bvh, camera, [0.0; 3], methods);
-            per_pixel(&s, none, record)
-        }
-        Precision::F64 => {
-            let s = CpuScene::<f64>::new(scene, bvh, camera, [0.0; 3], methods);
-            per_pixel(&s, none, record)
-        }
+    let options = CpuOptions {
+        background: [0.0; 3],
+        ..*options
+    };
+    let pixels = match options.precision {
+        Precision::F32 => per_pixel(
+            &CpuScene::<f32>::new(scene, bvh, camera, &options),
+            none,
+            record,
+        ),
+        Precision::F64 => per_pixel(
+            &CpuScene::<f64>::new(scene, bvh, camera, &options),
+            none,
+            record,
+        ),
     };
     ProbeImage {
         width: camera.width,
@@ -90,31 +117,23 @@ pub fn probe(
 }
 
 /// The path of pixel (x, y), as the shader's `probe_pixel` reports it.
-#[allow(clippy::too_many_arguments)]
 pub fn pixel_path(
     scene: &Scene,
     bvh: &Bvh,
     camera: &Camera,
-    background: [f32; 3],
-    precision: Precision,
-    methods: Methods,
+    options: &CpuOptions,
     pixel: [u32; 2],
 ) -> PathRecord {
-    match precision {
-        Precision::F32 => path_in(
-            &CpuScene::<f32>::new(scene, bvh, camera, background, methods),
-            pixel,
-        ),
-        Precision::F64 => path_in(
-            &CpuScene::<f64>::new(scene, bvh, camera, background, methods),
-            pixel,
-        ),
+    match options.precision {
+        Precision::F32 => path_in(&CpuScene::<f32>::new(scene, bvh, camera, options), pixel),
+        Precision::F64 => path_in(&CpuScene::<f64>::new(scene, bvh, camera, options), pixel),
     }
 }
 
 fn path_in<R: Real>(scene: &CpuScene<R>, [x, y]: [u32; 2]) -> PathRecord {
     let ray = pixel_ray(scene, x, y);
-    let r = trace_primary(scene, &ray);
+    let key = centre_key(scene, x, y);
+    let r = trace_primary(scene, &ray, &key);
     let v = R::v3_to_f64;
     let mut record = PathRecord {
         dir: v(ray.dir),
@@ -140,11 +159,9 @@ fn path_in<R: Real>(scene: &CpuScene<R>, [x, y]: [u32; 2]) -> PathRecord {
         ks: v(sp.ks),
         shininess: sp.shininess.to_f64(),
     });
-    record.lights = scene
-        .lights
-        .iter()
-        .map(|light| {
-            let term = light_term(scene, &sp, -ray.dir, light);
+    record.lights = (0..scene.lights.len())
+        .map(|i| {
+            let term = light_term(scene, &sp, -ray.dir, i, 0, &key);
             PathLight {
                 origin: v(term.origin),
                 blocker: term.blocker.prim,
@@ -159,11 +176,11 @@ fn path_in<R: Real>(scene: &CpuScene<R>, [x, y]: [u32; 2]) -> PathRecord {
     record
 }
 
-/// `f(trace_primary(pixel))` for every pixel, rows in parallel.
+/// `f(scene, x, y)` for every pixel, rows in parallel.
 fn per_pixel<R: Real, T: Send + Default + Clone>(
     scene: &CpuScene<R>,
     progress: &(dyn Fn(u64, u64) + Sync),
-    f: impl Fn(&trace::PixelResult<R>) -> T + Sync,
+    f: impl Fn(&CpuScene<R>, u32, u32) -> T + Sync,
 ) -> Vec<T> {
     let [w, h] = scene.size;
     let done = std::sync::atomic::AtomicU64::new(0);
@@ -172,8 +189,7 @@ fn per_pixel<R: Real, T: Send + Default + Clone>(
         .enumerate()
         .for_each(|(y, row)| {
             for (x, px) in row.iter_mut().enumerate() {
-                let ray = pixel_ray(scene, x as u32, y as u32);
-                *px = f(&trace_primary(scene, &ray));
+                *px = f(scene, x as u32, y as u32);
             }
             let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
             progress(n, u64::from(h));

@@ -58,6 +58,9 @@ pub trait Real:
     fn min(self, o: Self) -> Self;
     fn max(self, o: Self) -> Self;
     fn abs(self) -> Self;
+    fn sin(self) -> Self;
+    fn cos(self) -> Self;
+    const PI: Self;
     fn sign_nonzero(self) -> Self {
         if self >= Self::ZERO {
             Self::ONE
@@ -134,6 +137,14 @@ macro_rules! impl_real {
             fn abs(self) -> Self {
                 <$t>::abs(self)
             }
+            fn sin(self) -> Self {
+                <$t>::sin(self)
+            }
+            fn cos(self) -> Self {
+                <$t>::cos(self)
+            }
+            // The shader's literal, rounded to this precision.
+            const PI: Self = std::f64::consts::PI as $t;
             fn v3(x: Self, y: Self, z: Self) -> $v {
                 <$v>::new(x, y, z)
             }

@@ -4,11 +4,19 @@
 
 use crate::bvh::Bvh;
 use crate::camera::Camera;
-use crate::layout::{GpuBvhNode, FLAG_NONFINITE_COLOR, FLAG_NONFINITE_SURFACE, SPHERE_BIT};
+use crate::info::Features;
+use crate::layout::{
+    GpuBvhNode, FLAG_NONFINITE_COLOR, FLAG_NONFINITE_SURFACE, LIGHT_POINT, LIGHT_RECT,
+    LIGHT_SPHERE, SPHERE_BIT,
+};
 use crate::methods::Methods;
-use crate::scene::Scene;
+use crate::scene::{LightShape, Scene};
 
 use super::real::Real;
+use super::sample::{
+    rng, stratified_2d, unit_float, ROTATION, STREAM_LIGHT, STREAM_PIXEL, STREAM_TIME,
+};
+use super::CpuOptions;
 
 pub const NO_HIT: u32 = u32::MAX;
 
@@ -19,6 +27,7 @@ pub struct Sphere<R: Real> {
     pub kd: R::V3,
     pub ks: R::V3,
     pub shininess: R,
+    pub velocity: R::V3,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -33,6 +42,11 @@ pub struct VertexShading<R: Real> {
 pub struct Light<R: Real> {
     pub position: R::V3,
     pub color: R::V3,
+    pub kind: u32,
+    pub radius: R,
+    pub edge_u: R::V3,
+    pub edge_v: R::V3,
+    pub velocity: R::V3,
 }
 
 /// The scene as the CPU reference reads it: the shader's buffers, in `R`.
@@ -40,6 +54,7 @@ pub struct Light<R: Real> {
 pub struct CpuScene<'a, R: Real> {
     pub spheres: Vec<Sphere<R>>,
     pub triangles: Vec<[R::V3; 3]>,
+    pub triangle_velocity: Vec<R::V3>,
     pub shading: Vec<[VertexShading<R>; 3]>,
     pub lights: Vec<Light<R>>,
     pub nodes: &'a [GpuBvhNode],
@@ -50,18 +65,22 @@ pub struct CpuScene<'a, R: Real> {
     pub size: [u32; 2],
     /// The shader's `ROBUST` override.
     pub methods: Methods,
+    /// The shader's `MOTION_BLUR` override.
+    pub motion_blur: bool,
+    pub seed: u32,
+    pub spp: u32,
+    pub shadow_samples: u32,
+    pub reflect_depth: u32,
+    /// Seconds the shutter is open (0 without motion blur).
+    pub shutter: R,
 }
 
 impl<'a, R: Real> CpuScene<'a, R> {
-    pub fn new(
-        scene: &Scene,
-        bvh: &'a Bvh,
-        camera: &Camera,
-        background: [f32; 3],
-        methods: Methods,
-    ) -> Self {
+    pub fn new(scene: &Scene, bvh: &'a Bvh, camera: &Camera, options: &CpuOptions) -> Self {
         // f64 -> R once, as the GPU packing does for f32.
         let v = R::v3_from_f64;
+        let effects = &options.effects;
+        let features = Features::of(scene, effects);
         let half_extent = camera.half_extent.map(R::from_f64);
         CpuScene {
             spheres: scene
@@ -73,6 +92,7 @@ impl<'a, R: Real> CpuScene<'a, R> {
                     kd: v(s.material.kd),
                     ks: v(s.material.ks),
                     shininess: R::from_f64(s.material.shininess),
+                    velocity: v(s.velocity),
                 })
                 .collect(),
             triangles: scene
@@ -80,6 +100,7 @@ impl<'a, R: Real> CpuScene<'a, R> {
                 .iter()
                 .map(|t| t.vertices.map(|x| v(x.position)))
                 .collect(),
+            triangle_velocity: scene.triangles.iter().map(|t| v(t.velocity)).collect(),
             shading: scene
                 .triangles
                 .iter()
@@ -95,18 +116,46 @@ impl<'a, R: Real> CpuScene<'a, R> {
             lights: scene
                 .lights
                 .iter()
-                .map(|l| Light {
-                    position: v(l.position),
-                    color: v(l.color),
+                .map(|l| {
+                    let zero = R::v3(R::ZERO, R::ZERO, R::ZERO);
+                    let (kind, radius, edge_u, edge_v) = match l.shape {
+                        LightShape::Point => (LIGHT_POINT, R::ZERO, zero, zero),
+                        LightShape::Sphere { radius } => {
+                            (LIGHT_SPHERE, R::from_f64(radius), zero, zero)
+                        }
+                        LightShape::Rect { edge_u, edge_v } => {
+                            (LIGHT_RECT, R::ZERO, v(edge_u), v(edge_v))
+                        }
+                    };
+                    Light {
+                        position: v(l.position),
+                        color: v(l.color),
+                        kind,
+                        radius,
+                        edge_u,
+                        edge_v,
+                        velocity: v(l.velocity),
+                    }
                 })
                 .collect(),
             nodes: &bvh.nodes,
             prim_refs: &bvh.prim_refs,
             ambient: v(scene.ambient),
-            background: R::v3_from_f32(background),
+            background: R::v3_from_f32(options.background),
             half_extent,
             size: [camera.width, camera.height],
-            methods,
+            methods: options.methods,
+            motion_blur: features.motion_blur,
+            seed: effects.seed,
+            spp: effects.spp,
+            shadow_samples: effects.shadow_samples,
+            reflect_depth: effects.reflect_depth,
+            // Rounded to f32 first, as the GPU's uniform holds it.
+            shutter: if features.motion_blur {
+                R::from_f64(f64::from(effects.shutter_seconds() as f32))
+            } else {
+                R::ZERO
+            },
         }
     }
 }
@@ -118,6 +167,7 @@ pub struct Ray<R: Real> {
     pub inv_dir: R::V3,
     pub k: [usize; 3],
     pub shear: R::V3,
+    pub time: R,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -128,7 +178,7 @@ pub struct Hit<R: Real> {
     pub b2: R,
 }
 
-pub fn make_ray<R: Real>(origin: R::V3, dir: R::V3) -> Ray<R> {
+pub fn make_ray<R: Real>(origin: R::V3, dir: R::V3, time: R) -> Ray<R> {
     let safe = |d: R| {
         if d.abs() < R::MIN_DIR {
             d.sign_nonzero() * R::MIN_DIR
@@ -161,15 +211,45 @@ pub fn make_ray<R: Real>(origin: R::V3, dir: R::V3) -> Ray<R> {
         inv_dir,
         k: [kx, ky, kz],
         shear: R::v3(dir[kx] * sz, dir[ky] * sz, sz),
+        time,
     }
 }
 
-pub fn pixel_ray<R: Real>(scene: &CpuScene<R>, x: u32, y: u32) -> Ray<R> {
+pub fn camera_ray<R: Real>(scene: &CpuScene<R>, x: u32, y: u32, offset: [R; 2], time: R) -> Ray<R> {
     let (w, h) = (R::from_u32(scene.size[0]), R::from_u32(scene.size[1]));
-    let ndc_x = (R::TWO * (R::from_u32(x) + R::HALF) / w - R::ONE) * scene.half_extent[0];
-    let ndc_y = (R::ONE - R::TWO * (R::from_u32(y) + R::HALF) / h) * scene.half_extent[1];
+    let ndc_x = (R::TWO * (R::from_u32(x) + offset[0]) / w - R::ONE) * scene.half_extent[0];
+    let ndc_y = (R::ONE - R::TWO * (R::from_u32(y) + offset[1]) / h) * scene.half_extent[1];
     let zero = R::v3(R::ZERO, R::ZERO, R::ZERO);
-    make_ray(zero, R::normalize(R::v3(ndc_x, ndc_y, -R::ONE)))
+    make_ray(zero, R::normalize(R::v3(ndc_x, ndc_y, -R::ONE)), time)
+}
+
+pub fn pixel_ray<R: Real>(scene: &CpuScene<R>, x: u32, y: u32) -> Ray<R> {
+    camera_ray(scene, x, y, [R::HALF, R::HALF], R::ZERO)
+}
+
+pub fn sphere_at<R: Real>(scene: &CpuScene<R>, index: usize, time: R) -> Sphere<R> {
+    let mut s = scene.spheres[index];
+    if scene.motion_blur {
+        s.center = s.center + s.velocity * time;
+    }
+    s
+}
+
+pub fn triangle_at<R: Real>(scene: &CpuScene<R>, index: usize, time: R) -> [R::V3; 3] {
+    let mut tri = scene.triangles[index];
+    if scene.motion_blur {
+        let shift = scene.triangle_velocity[index] * time;
+        tri = tri.map(|v| v + shift);
+    }
+    tri
+}
+
+pub fn light_at<R: Real>(scene: &CpuScene<R>, index: usize, time: R) -> Light<R> {
+    let mut light = scene.lights[index];
+    if scene.motion_blur {
+        light.position = light.position + light.velocity * time;
+    }
+    light
 }
 
 pub fn hit_aabb<R: Real>(ray: &Ray<R>, bmin: [f32; 3], bmax: [f32; 3], t_max: R) -> R {
@@ -310,7 +390,7 @@ fn hit_leaf<R: Real>(
     for &prim in &scene.prim_refs[first..first + node.count as usize] {
         let index = (prim & !SPHERE_BIT) as usize;
         if prim & SPHERE_BIT != 0 {
-            let sphere = &scene.spheres[index];
+            let sphere = &sphere_at(scene, index, ray.time);
             let t = if robust {
                 hit_sphere(ray, sphere, best.t)
             } else {
@@ -328,7 +408,7 @@ fn hit_leaf<R: Real>(
                 }
             }
         } else {
-            let tri = &scene.triangles[index];
+            let tri = &triangle_at(scene, index, ray.time);
             let (t, b1, b2) = if robust {
                 hit_triangle(ray, tri, best.t)
             } else {
@@ -444,7 +524,7 @@ pub struct SurfacePoint<R: Real> {
 pub fn surface_point<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>, hit: &Hit<R>) -> SurfacePoint<R> {
     let index = (hit.prim & !SPHERE_BIT) as usize;
     if hit.prim & SPHERE_BIT != 0 {
-        let s = &scene.spheres[index];
+        let s = &sphere_at(scene, index, ray.time);
         let p = ray.origin + ray.dir * hit.t;
         let n = (p - s.center) * (R::ONE / s.radius);
         return SurfacePoint {
@@ -457,7 +537,7 @@ pub fn surface_point<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>, hit: &Hit<R>) -
             shininess: s.shininess,
         };
     }
-    let tri = &scene.triangles[index];
+    let tri = &triangle_at(scene, index, ray.time);
     let b0 = R::ONE - hit.b1 - hit.b2;
     let w = [b0, hit.b1, hit.b2];
     let p = match scene.methods {
@@ -492,13 +572,15 @@ pub struct LightTerm<R: Real> {
     pub contribution: R::V3,
 }
 
-pub fn light_term<R: Real>(
+pub fn point_term<R: Real>(
     scene: &CpuScene<R>,
     sp: &SurfacePoint<R>,
     view: R::V3,
-    light: &Light<R>,
+    target: R::V3,
+    color: R::V3,
+    time: R,
 ) -> LightTerm<R> {
-    let to_light = light.position - sp.p;
+    let to_light = target - sp.p;
     let side = if R::dot(sp.ng, to_light) >= R::ZERO {
         sp.ng
     } else {
@@ -508,7 +590,7 @@ pub fn light_term<R: Real>(
     let zero = R::v3(R::ZERO, R::ZERO, R::ZERO);
     let mut term = LightTerm {
         origin,
-        blocker: occluder(scene, &make_ray(origin, light.position - origin)),
+        blocker: occluder(scene, &make_ray(origin, target - origin, time)),
         ln: R::ZERO,
         rv: R::ZERO,
         spec: R::ZERO,
@@ -522,8 +604,110 @@ pub fn light_term<R: Real>(
     let r = sp.n * (R::TWO * term.ln) - l;
     term.rv = R::dot(r, view).max(R::ZERO);
     term.spec = pow_c(term.rv, sp.shininess);
-    term.contribution = light.color * (sp.kd * term.ln.max(R::ZERO) + sp.ks * term.spec);
+    term.contribution = color * (sp.kd * term.ln.max(R::ZERO) + sp.ks * term.spec);
     term
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct SampleKey<R: Real> {
+    pub pixel: u32,
+    pub sample: u32,
+    pub time: R,
+}
+
+fn basis_u<R: Real>(w: R::V3) -> R::V3 {
+    let s = w[2].sign_nonzero();
+    let a = -R::ONE / (s + w[2]);
+    R::v3(R::ONE + s * w[0] * w[0] * a, s * w[0] * w[1] * a, -s * w[0])
+}
+
+fn basis_v<R: Real>(w: R::V3) -> R::V3 {
+    let s = w[2].sign_nonzero();
+    let a = -R::ONE / (s + w[2]);
+    R::v3(w[0] * w[1] * a, s + w[1] * w[1] * a, -w[1])
+}
+
+pub fn light_sample_point<R: Real>(light: &Light<R>, p: R::V3, uv: [R; 2]) -> R::V3 {
+    if light.kind == LIGHT_RECT {
+        return light.position
+            + light.edge_u * (uv[0] - R::HALF)
+            + light.edge_v * (uv[1] - R::HALF);
+    }
+    let up = R::v3(R::ZERO, R::ZERO, R::ONE);
+    let w = safe_normalize::<R>(light.position - p, up);
+    let r = light.radius * uv[0].sqrt();
+    let phi = R::TWO * R::PI * uv[1];
+    light.position + basis_u::<R>(w) * (r * phi.cos()) + basis_v::<R>(w) * (r * phi.sin())
+}
+
+pub fn area_term<R: Real>(
+    scene: &CpuScene<R>,
+    sp: &SurfacePoint<R>,
+    view: R::V3,
+    light: &Light<R>,
+    stream: u32,
+    key: &SampleKey<R>,
+) -> LightTerm<R> {
+    let n = scene.shadow_samples.max(1);
+    let draw = |index| rng(scene.seed, key.pixel, key.sample, stream, index);
+    let rotation = draw(ROTATION);
+    let color = light.color * (R::ONE / R::from_u32(n));
+    let zero = R::v3(R::ZERO, R::ZERO, R::ZERO);
+    let no_hit = Hit {
+        t: R::ZERO,
+        prim: NO_HIT,
+        b1: R::ZERO,
+        b2: R::ZERO,
+    };
+    let mut total = LightTerm {
+        origin: zero,
+        blocker: no_hit,
+        ln: R::ZERO,
+        rv: R::ZERO,
+        spec: R::ZERO,
+        contribution: zero,
+    };
+    let mut blocked = 0;
+    for m in 0..n {
+        let jitter = [unit_float(draw(2 * m)), unit_float(draw(2 * m + 1))];
+        let uv = stratified_2d(m, n, rotation, jitter);
+        let target = light_sample_point(light, sp.p, uv);
+        let term = point_term(scene, sp, view, target, color, key.time);
+        total.contribution = total.contribution + term.contribution;
+        total.origin = term.origin;
+        if term.blocker.prim != NO_HIT {
+            if blocked == 0 {
+                total.blocker = term.blocker;
+            }
+            blocked += 1;
+        } else {
+            total.ln = term.ln;
+            total.rv = term.rv;
+            total.spec = term.spec;
+        }
+    }
+    if blocked < n {
+        total.blocker = no_hit;
+    }
+    total
+}
+
+pub fn light_term<R: Real>(
+    scene: &CpuScene<R>,
+    sp: &SurfacePoint<R>,
+    view: R::V3,
+    i: usize,
+    bounce: u32,
+    key: &SampleKey<R>,
+) -> LightTerm<R> {
+    let light = light_at(scene, i, key.time);
+    if light.kind != LIGHT_POINT {
+        let stream = STREAM_LIGHT
+            .wrapping_add(bounce << 24)
+            .wrapping_add(i as u32);
+        return area_term(scene, sp, view, &light, stream, key);
+    }
+    point_term(scene, sp, view, light.position, light.color, key.time)
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -532,13 +716,19 @@ pub struct Shading<R: Real> {
     pub shadow_mask: u32,
 }
 
-pub fn shade_phong<R: Real>(scene: &CpuScene<R>, sp: &SurfacePoint<R>, view: R::V3) -> Shading<R> {
+pub fn shade_phong<R: Real>(
+    scene: &CpuScene<R>,
+    sp: &SurfacePoint<R>,
+    view: R::V3,
+    bounce: u32,
+    key: &SampleKey<R>,
+) -> Shading<R> {
     let mut out = Shading {
         color: scene.ambient,
         shadow_mask: 0,
     };
-    for (i, light) in scene.lights.iter().enumerate() {
-        let term = light_term(scene, sp, view, light);
+    for i in 0..scene.lights.len() {
+        let term = light_term(scene, sp, view, i, bounce, key);
         out.color = out.color + term.contribution;
         if term.blocker.prim != NO_HIT {
             out.shadow_mask |= 1 << i.min(31);
@@ -556,7 +746,11 @@ pub struct PixelResult<R: Real> {
     pub flags: u32,
 }
 
-pub fn trace_primary<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>) -> PixelResult<R> {
+pub fn trace_primary<R: Real>(
+    scene: &CpuScene<R>,
+    ray: &Ray<R>,
+    key: &SampleKey<R>,
+) -> PixelResult<R> {
     let hit = trace_closest(scene, ray);
     if hit.prim == NO_HIT {
         return PixelResult {
@@ -567,7 +761,7 @@ pub fn trace_primary<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>) -> PixelResult<
         };
     }
     let sp = surface_point(scene, ray, &hit);
-    let shading = shade_phong(scene, &sp, -ray.dir);
+    let shading = shade_phong(scene, &sp, -ray.dir, 0, key);
     let mut flags = 0;
     if R::nonfinite(shading.color) {
         flags |= FLAG_NONFINITE_COLOR;
@@ -580,5 +774,96 @@ pub fn trace_primary<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>) -> PixelResult<
         color: shading.color,
         shadow_mask: shading.shadow_mask,
         flags,
+    }
+}
+
+pub fn radiance<R: Real>(scene: &CpuScene<R>, primary: &Ray<R>, key: &SampleKey<R>) -> R::V3 {
+    let first = trace_primary(scene, primary, key);
+    let local = R::clamp01(first.color);
+    if first.hit.prim != NO_HIT && scene.reflect_depth > 0 {
+        return reflect_path(scene, primary, first.hit, local, key);
+    }
+    local
+}
+
+fn reflect_path<R: Real>(
+    scene: &CpuScene<R>,
+    primary: &Ray<R>,
+    first_hit: Hit<R>,
+    first_local: R::V3,
+    key: &SampleKey<R>,
+) -> R::V3 {
+    let mut ray = *primary;
+    let mut hit = first_hit;
+    let mut local = first_local;
+    let mut color = R::v3(R::ZERO, R::ZERO, R::ZERO);
+    let one = R::v3(R::ONE, R::ONE, R::ONE);
+    let mut weight = one;
+    for bounce in 0..scene.reflect_depth {
+        let sp = surface_point(scene, &ray, &hit);
+        if (0..3).all(|i| sp.ks[i] == R::ZERO) {
+            break;
+        }
+        color = color + weight * (one - sp.ks) * local;
+        weight = weight * sp.ks;
+        let dir = safe_normalize::<R>(ray.dir - sp.n * (R::TWO * R::dot(ray.dir, sp.n)), sp.n);
+        let side = if R::dot(sp.ng, dir) >= R::ZERO {
+            sp.ng
+        } else {
+            -sp.ng
+        };
+        ray = make_ray(offset_ray(scene, sp.p, side, sp.scale), dir, ray.time);
+        hit = trace_closest(scene, &ray);
+        if hit.prim == NO_HIT {
+            local = scene.background;
+            break;
+        }
+        let next = surface_point(scene, &ray, &hit);
+        local = R::clamp01(shade_phong(scene, &next, -ray.dir, bounce + 1, key).color);
+    }
+    color + weight * local
+}
+
+pub fn sample_color<R: Real>(scene: &CpuScene<R>, x: u32, y: u32, s: u32, n: u32) -> R::V3 {
+    let pixel = y.wrapping_mul(scene.size[0]).wrapping_add(x);
+    let draw = |sample, stream, index| rng(scene.seed, pixel, sample, stream, index);
+    let mut offset = [R::HALF, R::HALF];
+    let mut time = R::ZERO;
+    if n > 1 {
+        let rotation = draw(ROTATION, STREAM_PIXEL, ROTATION);
+        let jitter = [
+            unit_float(draw(s, STREAM_PIXEL, 0)),
+            unit_float(draw(s, STREAM_PIXEL, 1)),
+        ];
+        offset = stratified_2d(s, n, rotation, jitter);
+    }
+    if scene.motion_blur {
+        time = scene.shutter * unit_float(draw(s, STREAM_TIME, 0));
+    }
+    let key = SampleKey {
+        pixel,
+        sample: s,
+        time,
+    };
+    radiance(scene, &camera_ray(scene, x, y, offset, time), &key)
+}
+
+pub fn pixel_color<R: Real>(scene: &CpuScene<R>, x: u32, y: u32) -> R::V3 {
+    let n = scene.spp.max(1);
+    if n == 1 {
+        return sample_color(scene, x, y, 0, 1);
+    }
+    let mut sum = R::v3(R::ZERO, R::ZERO, R::ZERO);
+    for s in 0..n {
+        sum = sum + sample_color(scene, x, y, s, n);
+    }
+    sum * (R::ONE / R::from_u32(n))
+}
+
+pub fn centre_key<R: Real>(scene: &CpuScene<R>, x: u32, y: u32) -> SampleKey<R> {
+    SampleKey {
+        pixel: y.wrapping_mul(scene.size[0]).wrapping_add(x),
+        sample: 0,
+        time: R::ZERO,
     }
 }

@@ -33,6 +33,8 @@ pub enum GpuError {
          (the driver reset it or it crashed)"
     )]
     DeviceLost { x: u32, y: u32 },
+    #[error(transparent)]
+    Shader(#[from] super::shader::ShaderError),
 }
 
 pub(crate) trait VkResultExt<T> {

@@ -1,7 +1,8 @@
 //! The Vulkan backend (ash, loaded at run time; memory through gpu-allocator).
 //!
-//! `context` creates the instance and device and owns the allocator; `buffer`
-//! and `pipeline` wrap one Vulkan concept each; `render` runs the trace
+//! `context` creates the instance and device and owns the allocator; `shader`
+//! specialises the WGSL per feature set; `buffer` and `pipeline` wrap one
+//! Vulkan concept each; `render` runs the trace
 //! pipeline over a packed scene in tiles; `debug` counts validation messages.
 //! Every wrapper holds an `Arc` of the context's shared state, so Vulkan
 //! objects are destroyed after the work using them, and the device last.
@@ -12,8 +13,9 @@ mod debug;
 mod error;
 mod pipeline;
 mod render;
+pub mod shader;
 
 pub use context::{list_devices, Context, ContextOptions, DeviceInfo, DeviceSelector};
 pub use error::GpuError;
-pub use pipeline::BINDINGS;
+pub use pipeline::{Kernel, BINDINGS};
 pub use render::{GpuRenderOptions, GpuRenderer};

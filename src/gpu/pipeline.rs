@@ -1,20 +1,19 @@
-//! The trace compute pipelines: SPIR-V compiled from shaders/trace.wgsl by
-//! build.rs (one module per `Methods` variant), one descriptor set layout
-//! (bindings as listed in the shader's header) and pipeline layout, and a
-//! pipeline per (variant, entry point), built on first use and kept.
+//! The trace compute pipelines: one descriptor set layout (bindings as
+//! listed in the shader's header) and pipeline layout, and a pipeline per
+//! (methods, feature set, entry point), its SPIR-V specialised by `shader`,
+//! built on first use and kept for the renderer's lifetime.
 
 use std::collections::HashMap;
 use std::ffi::CStr;
 use std::sync::{Arc, Mutex};
+use std::time::{Duration, Instant};
 
 use ash::vk;
 
 use super::context::{Context, Shared};
 use super::error::{GpuError, VkResultExt};
+use crate::info::Features;
 use crate::methods::Methods;
-
-const TRACE_ROBUST: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/trace_robust.spv"));
-const TRACE_NAIVE: &[u8] = include_bytes!(concat!(env!("OUT_DIR"), "/trace_naive.spv"));
 
 /// The shader's entry points.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -37,15 +36,16 @@ impl Kernel {
     }
 }
 
-fn spirv(methods: Methods) -> &'static [u8] {
-    match methods {
-        Methods::Robust => TRACE_ROBUST,
-        Methods::Naive => TRACE_NAIVE,
-    }
+/// What a pipeline is specialised for: the cache key.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct PipelineKey {
+    pub methods: Methods,
+    pub features: Features,
+    pub kernel: Kernel,
 }
 
 /// Descriptor types of bindings 0.. of group 0, in the shader's order.
-pub const BINDINGS: [vk::DescriptorType; 9] = [
+pub const BINDINGS: [vk::DescriptorType; 10] = [
     vk::DescriptorType::UNIFORM_BUFFER, // frame
     vk::DescriptorType::UNIFORM_BUFFER, // tile
     vk::DescriptorType::STORAGE_BUFFER, // spheres
@@ -55,13 +55,14 @@ pub const BINDINGS: [vk::DescriptorType; 9] = [
     vk::DescriptorType::STORAGE_BUFFER, // nodes
     vk::DescriptorType::STORAGE_BUFFER, // prim_refs
     vk::DescriptorType::STORAGE_BUFFER, // output
+    vk::DescriptorType::STORAGE_BUFFER, // velocities
 ];
 
 pub struct TracePipeline {
     shared: Arc<Shared>,
     pub(crate) set_layout: vk::DescriptorSetLayout,
     pub(crate) layout: vk::PipelineLayout,
-    pipelines: Mutex<HashMap<(Methods, Kernel), vk::Pipeline>>,
+    pipelines: Mutex<HashMap<PipelineKey, vk::Pipeline>>,
 }
 
 impl TracePipeline {
@@ -107,15 +108,17 @@ impl TracePipeline {
         Ok(p)
     }
 
-    /// The pipeline for `kernel` in the `methods` variant, built on first use.
-    pub fn get(&self, methods: Methods, kernel: Kernel) -> Result<vk::Pipeline, GpuError> {
+    /// The pipeline for `key`, built on first use; the duration is the
+    /// build time (specialisation, SPIR-V and driver compile) when this call
+    /// built it, zero when it came from the cache.
+    pub fn get(&self, key: PipelineKey) -> Result<(vk::Pipeline, Duration), GpuError> {
         let mut pipelines = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some(&p) = pipelines.get(&(methods, kernel)) {
-            return Ok(p);
+        if let Some(&p) = pipelines.get(&key) {
+            return Ok((p, Duration::ZERO));
         }
+        let start = Instant::now();
+        let words = super::shader::spirv(key.methods, key.features)?;
         let device = &self.shared.device;
-        let words = ash::util::read_spv(&mut std::io::Cursor::new(spirv(methods)))
-            .expect("build.rs writes whole SPIR-V words");
         // SAFETY: valid create infos on a live device; the module is destroyed
         // once the pipeline exists, the pipeline is owned by `self`.
         let pipeline = unsafe {
@@ -125,7 +128,7 @@ impl TracePipeline {
             let stage = vk::PipelineShaderStageCreateInfo::default()
                 .stage(vk::ShaderStageFlags::COMPUTE)
                 .module(module)
-                .name(kernel.entry_point());
+                .name(key.kernel.entry_point());
             let info = vk::ComputePipelineCreateInfo::default()
                 .stage(stage)
                 .layout(self.layout);
@@ -135,8 +138,8 @@ impl TracePipeline {
                 .map_err(|(_, r)| r)
                 .call("vkCreateComputePipelines")?[0]
         };
-        pipelines.insert((methods, kernel), pipeline);
-        Ok(pipeline)
+        pipelines.insert(key, pipeline);
+        Ok((pipeline, start.elapsed()))
     }
 }
 

@@ -15,13 +15,23 @@ use gpu_allocator::MemoryLocation;
 use super::buffer::Buffer;
 use super::context::{Context, Shared};
 use super::error::{GpuError, VkResultExt};
-use super::pipeline::{Kernel, TracePipeline, BINDINGS};
+use super::pipeline::{Kernel, PipelineKey, TracePipeline, BINDINGS};
 use crate::camera::Camera;
 use crate::framebuffer::Framebuffer;
+use crate::info::Features;
 use crate::layout::{padded, GpuScene, GpuTile, PATH_HEADER, PATH_PER_LIGHT, WORKGROUP_SIZE};
 use crate::methods::Methods;
 use crate::probe::{PathRecord, ProbeImage};
+use crate::scene::Effects;
 use crate::timing::Timings;
+
+fn key(options: &GpuRenderOptions, kernel: Kernel) -> PipelineKey {
+    PipelineKey {
+        methods: options.methods,
+        features: options.features,
+        kernel,
+    }
+}
 
 /// Tiles in flight at once.
 const SLOTS: usize = 2;
@@ -36,6 +46,11 @@ pub struct GpuRenderOptions {
     pub tile_timeout: Duration,
     /// Intersection and offset methods (robust unless measuring them).
     pub methods: Methods,
+    /// Sample counts, reflection depth, shutter and seed.
+    pub effects: Effects,
+    /// What the shader is specialised for: `Features::of` the scene, or
+    /// `Features::ALL` for the generic shader.
+    pub features: Features,
 }
 
 impl Default for GpuRenderOptions {
@@ -49,6 +64,8 @@ impl Default for GpuRenderOptions {
             tile_size: 512,
             tile_timeout: Duration::from_secs(60),
             methods: Methods::Robust,
+            effects: Effects::default(),
+            features: Features::ALL,
         }
     }
 }
@@ -69,8 +86,6 @@ enum Job {
 pub struct GpuRenderer {
     ctx: Context,
     pipeline: TracePipeline,
-    /// How long building the pipeline took.
-    pub pipeline_time: Duration,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -116,14 +131,21 @@ struct Slot {
 
 impl GpuRenderer {
     pub fn new(ctx: &Context) -> Result<GpuRenderer, GpuError> {
-        let start = Instant::now();
         let pipeline = TracePipeline::new(ctx)?;
-        pipeline.get(Methods::Robust, Kernel::Render)?;
         Ok(GpuRenderer {
             ctx: ctx.clone(),
             pipeline,
-            pipeline_time: start.elapsed(),
         })
+    }
+
+    /// Builds (or finds in the cache) the pipeline `options` call for;
+    /// returns the build time, zero when it was cached.
+    pub fn prepare(
+        &self,
+        options: &GpuRenderOptions,
+        kernel: Kernel,
+    ) -> Result<Duration, GpuError> {
+        Ok(self.pipeline.get(key(options, kernel))?.1)
     }
 
     /// Renders `scene` as seen by `camera`. `progress(tiles_done, tiles_total)`
@@ -209,11 +231,14 @@ impl GpuRenderer {
                 )
             }
         };
-        let pipeline = self.pipeline.get(options.methods, kernel)?;
+        let (pipeline, build_time) = self.pipeline.get(key(options, kernel))?;
+        if !build_time.is_zero() {
+            timings.add("pipeline", build_time);
+        }
 
         let mut pools = self.create_pools()?;
         let upload_start = Instant::now();
-        let frame = scene.frame(camera, background);
+        let frame = scene.frame(camera, background, &options.effects, &options.features);
         // (binding, name, contents) of everything uploaded once per render.
         let scene_buffers = self.upload(
             &pools,
@@ -225,6 +250,7 @@ impl GpuRenderer {
                 (5, "lights", padded(&scene.lights)),
                 (6, "bvh nodes", padded(&scene.nodes)),
                 (7, "primitive refs", padded(&scene.prim_refs)),
+                (9, "velocities", padded(&scene.velocities)),
             ],
         )?;
         let tile_bytes = out_texels * TEXEL_BYTES;

@@ -37,10 +37,7 @@ fn mat(kd: f64, ks: f64, shininess: f64) -> Material {
 }
 
 fn light(p: DVec3, c: f64) -> Light {
-    Light {
-        position: p,
-        color: DVec3::splat(c),
-    }
+    Light::point(p, DVec3::splat(c))
 }
 
 fn sphere(center: DVec3, radius: f64, m: Material) -> Sphere {
@@ -48,6 +45,7 @@ fn sphere(center: DVec3, radius: f64, m: Material) -> Sphere {
         center,
         radius,
         material: m,
+        velocity: DVec3::ZERO,
     }
 }
 
@@ -58,6 +56,7 @@ fn tri(p: [DVec3; 3], n: [DVec3; 3], m: Material) -> Triangle {
             normal: n[i],
             material: m,
         }),
+        velocity: DVec3::ZERO,
     }
 }
 
@@ -218,7 +217,7 @@ fn scene(
         spheres,
         triangles,
         lights,
-        warnings: Vec::new(),
+        ..Scene::default()
     }
 }
 

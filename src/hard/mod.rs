@@ -15,12 +15,13 @@ use std::time::{Duration, Instant};
 
 use crate::bvh::Bvh;
 use crate::camera::Camera;
-use crate::cpu::{self, Precision};
+use crate::cpu::{self, CpuOptions, Precision};
 use crate::gpu::{GpuRenderOptions, GpuRenderer};
+use crate::info::Features;
 use crate::layout::GpuScene;
 use crate::methods::Methods;
 use crate::probe::ProbeImage;
-use crate::scene::{parse_scene, to_classic_text, Scene};
+use crate::scene::{parse_scene, to_classic_text, Effects, Scene};
 use crate::Error;
 pub use metrics::{count, Counts, Metric};
 
@@ -58,13 +59,11 @@ impl Case {
     /// The ground truth: the CPU reference in f64 with the robust methods.
     pub fn reference(&self) -> ProbeImage {
         let bvh = Bvh::build(&self.scene);
-        cpu::probe(
-            &self.scene,
-            &bvh,
-            &self.camera(),
-            Precision::F64,
-            Methods::Robust,
-        )
+        let options = CpuOptions {
+            precision: Precision::F64,
+            ..CpuOptions::default()
+        };
+        cpu::probe(&self.scene, &bvh, &self.camera(), &options)
     }
 }
 
@@ -163,11 +162,18 @@ pub fn probe(
                 gpu.ok_or_else(|| Error::InvalidOption("no GPU for the GPU runner".into()))?;
             let options = GpuRenderOptions {
                 methods,
+                features: Features::of(&case.scene, &Effects::default()),
                 ..Default::default()
             };
             gpu.probe(&GpuScene::pack(&case.scene, &bvh), &camera, &options)?
         }
-        Runner::CpuF32 => cpu::probe(&case.scene, &bvh, &camera, Precision::F32, methods),
+        Runner::CpuF32 => {
+            let options = CpuOptions {
+                methods,
+                ..CpuOptions::default()
+            };
+            cpu::probe(&case.scene, &bvh, &camera, &options)
+        }
     };
     Ok((image, start.elapsed()))
 }

@@ -5,9 +5,11 @@
 //! them to f32 once, in one place each.
 
 mod parse;
+mod settings;
 mod write;
 
 pub use parse::{parse_scene, read_scene, Diagnostic, ParseError};
+pub use settings::{Effects, Settings};
 pub use write::to_classic_text;
 
 use glam::DVec3;
@@ -25,6 +27,8 @@ pub struct Sphere {
     pub center: DVec3,
     pub radius: f64,
     pub material: Material,
+    /// Scene units per second (extension `vel:`); zero for static spheres.
+    pub velocity: DVec3,
 }
 
 /// One corner of a triangle: position, shading normal (as written, not
@@ -39,12 +43,48 @@ pub struct Vertex {
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Triangle {
     pub vertices: [Vertex; 3],
+    /// Scene units per second, the same for all three corners (extension `vel:`).
+    pub velocity: DVec3,
+}
+
+/// What a light emits from (extensions `rad:`, `edge_u:`/`edge_v:`).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub enum LightShape {
+    /// The classic point light: one shadow ray.
+    #[default]
+    Point,
+    /// A sphere of this radius about `position`, sampled as the disc it
+    /// shows the shaded point.
+    Sphere { radius: f64 },
+    /// A parallelogram centred on `position` with these two edge vectors.
+    Rect { edge_u: DVec3, edge_v: DVec3 },
+}
+
+impl LightShape {
+    pub fn is_area(&self) -> bool {
+        !matches!(self, LightShape::Point)
+    }
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Light {
     pub position: DVec3,
     pub color: DVec3,
+    pub shape: LightShape,
+    /// Scene units per second (extension `vel:`).
+    pub velocity: DVec3,
+}
+
+impl Light {
+    /// A classic point light.
+    pub fn point(position: DVec3, color: DVec3) -> Light {
+        Light {
+            position,
+            color,
+            shape: LightShape::Point,
+            velocity: DVec3::ZERO,
+        }
+    }
 }
 
 #[derive(Clone, Debug, Default, PartialEq)]
@@ -53,6 +93,8 @@ pub struct Scene {
     pub spheres: Vec<Sphere>,
     pub triangles: Vec<Triangle>,
     pub lights: Vec<Light>,
+    /// Render settings the file asks for (extensions; classic files have none).
+    pub settings: Settings,
     /// Questionable but renderable input (e.g. a zero-length normal), with
     /// its location, for the CLI to print.
     pub warnings: Vec<Diagnostic>,
@@ -109,6 +151,13 @@ impl Sphere {
             max: self.center + DVec3::splat(self.radius),
         }
     }
+
+    /// Bounds of everywhere the sphere is during the next `span` seconds.
+    pub fn swept_bounds(&self, span: f64) -> Bounds {
+        let mut later = *self;
+        later.center += self.velocity * span;
+        self.bounds().union(later.bounds())
+    }
 }
 
 impl Triangle {
@@ -116,6 +165,15 @@ impl Triangle {
         self.vertices
             .iter()
             .fold(Bounds::EMPTY, |b, v| b.grow(v.position))
+    }
+
+    /// Bounds of everywhere the triangle is during the next `span` seconds
+    /// (linear motion: the swept volume lies in the hull of both ends).
+    pub fn swept_bounds(&self, span: f64) -> Bounds {
+        let shift = self.velocity * span;
+        self.vertices
+            .iter()
+            .fold(self.bounds(), |b, v| b.grow(v.position + shift))
     }
 }
 
@@ -129,6 +187,34 @@ impl Scene {
 
     pub fn primitive_count(&self) -> usize {
         self.spheres.len() + self.triangles.len()
+    }
+
+    /// Whether anything (geometry or light) has a velocity.
+    pub fn has_motion(&self) -> bool {
+        self.spheres.iter().any(|s| s.velocity != DVec3::ZERO)
+            || self.triangles.iter().any(|t| t.velocity != DVec3::ZERO)
+            || self.lights.iter().any(|l| l.velocity != DVec3::ZERO)
+    }
+
+    /// The scene at `time` seconds: everything moved along its velocity.
+    /// Velocities are kept, so motion blur can sample the shutter from there.
+    pub fn at_time(&self, time: f64) -> Scene {
+        let mut s = self.clone();
+        if time == 0.0 {
+            return s;
+        }
+        for sphere in &mut s.spheres {
+            sphere.center += sphere.velocity * time;
+        }
+        for t in &mut s.triangles {
+            for v in &mut t.vertices {
+                v.position += t.velocity * time;
+            }
+        }
+        for l in &mut s.lights {
+            l.position += l.velocity * time;
+        }
+        s
     }
 
     /// The scene scaled by `factor` about the camera (the origin): positions,
@@ -146,6 +232,23 @@ impl Scene {
         }
         for l in &mut s.lights {
             l.position *= factor;
+            l.velocity *= factor;
+            l.shape = match l.shape {
+                LightShape::Point => LightShape::Point,
+                LightShape::Sphere { radius } => LightShape::Sphere {
+                    radius: radius * factor,
+                },
+                LightShape::Rect { edge_u, edge_v } => LightShape::Rect {
+                    edge_u: edge_u * factor,
+                    edge_v: edge_v * factor,
+                },
+            };
+        }
+        for sphere in &mut s.spheres {
+            sphere.velocity *= factor;
+        }
+        for t in &mut s.triangles {
+            t.velocity *= factor;
         }
         s
     }

@@ -9,6 +9,16 @@
 //! light    pos: x y z  col: r g b
 //! ```
 //!
+//! Optional extensions (never in the course's files; see the README):
+//!
+//! ```text
+//! reflect: D   spp: N   shadow_samples: M   shutter: S   seed: K   fps: F
+//!              (settings, anywhere between objects; not counted as objects)
+//! light ... col: r g b  [rad: r | edge_u: x y z edge_v: x y z]  [vel: x y z]
+//! sphere ... shi: s  [vel: x y z]
+//! triangle (...) x 3  [vel: x y z]
+//! ```
+//!
 //! Tokens are separated by any whitespace; tags and keywords are
 //! case-insensitive; numbers are anything Rust's `f64` parser accepts that is
 //! finite (`1`, `.44`, `1e-16`). The object count counts spheres, triangles
@@ -21,7 +31,7 @@ use std::path::Path;
 
 use glam::DVec3;
 
-use super::{Light, Material, Scene, Sphere, Triangle, Vertex};
+use super::{Effects, Light, LightShape, Material, Scene, Sphere, Triangle, Vertex};
 use crate::Error;
 
 /// A message tied to a place in a scene file, shown with the source line and
@@ -135,6 +145,9 @@ impl<'a> Parser<'a> {
         self.scene.ambient = self.vec3("the ambient colour")?;
         let mut found: u64 = 0;
         while let Some(tok) = self.next_token() {
+            if self.setting(&tok)? {
+                continue;
+            }
             found += 1;
             if found > declared {
                 return Err(self.error_at(
@@ -156,7 +169,11 @@ impl<'a> Parser<'a> {
                 let light = self.light()?;
                 self.scene.lights.push(light);
             } else {
-                return Err(self.expected(&tok, "`sphere`, `triangle` or `light`"));
+                return Err(self.expected(
+                    &tok,
+                    "`sphere`, `triangle`, `light` or a setting (`reflect:`, `spp:`, \
+                     `shadow_samples:`, `shutter:`, `seed:`, `fps:`)",
+                ));
             }
         }
         if found < declared {
@@ -196,10 +213,12 @@ impl<'a> Parser<'a> {
             ));
         }
         let material = self.material()?;
+        let velocity = self.velocity()?;
         Ok(Sphere {
             center,
             radius,
             material,
+            velocity,
         })
     }
 
@@ -248,7 +267,8 @@ impl<'a> Parser<'a> {
             }
             v.material = self.material()?;
         }
-        Ok(Triangle { vertices })
+        let velocity = self.velocity()?;
+        Ok(Triangle { vertices, velocity })
     }
 
     fn light(&mut self) -> PResult<Light> {
@@ -256,7 +276,97 @@ impl<'a> Parser<'a> {
         let position = self.vec3("the light position")?;
         self.tag("col:")?;
         let color = self.vec3("the light colour")?;
-        Ok(Light { position, color })
+        let mut shape = LightShape::Point;
+        if self.optional_tag("rad:") {
+            let (radius, tok) = self.number("the light radius")?;
+            if radius < 0.0 {
+                return Err(self.error_at(
+                    &tok,
+                    format!("light radius must be zero or more, found {}", tok.show()),
+                    Some("rad: 0 (or no rad:) makes a point light"),
+                ));
+            }
+            if radius > 0.0 {
+                shape = LightShape::Sphere { radius };
+            }
+        } else if self.optional_tag("edge_u:") {
+            let edge_u = self.vec3("the rectangle light's first edge")?;
+            self.tag("edge_v:")?;
+            let edge_v = self.vec3("the rectangle light's second edge")?;
+            shape = LightShape::Rect { edge_u, edge_v };
+        }
+        let velocity = self.velocity()?;
+        Ok(Light {
+            position,
+            color,
+            shape,
+            velocity,
+        })
+    }
+
+    /// An optional `vel: x y z` (scene units per second).
+    fn velocity(&mut self) -> PResult<DVec3> {
+        if self.optional_tag("vel:") {
+            self.vec3("the velocity")
+        } else {
+            Ok(DVec3::ZERO)
+        }
+    }
+
+    /// Consumes the next token if it is `tag`.
+    fn optional_tag(&mut self, tag: &str) -> bool {
+        let saved = (self.pos, self.line, self.line_start);
+        match self.next_token() {
+            Some(tok) if tok.is(tag) => true,
+            _ => {
+                (self.pos, self.line, self.line_start) = saved;
+                false
+            }
+        }
+    }
+
+    /// Parses a setting directive if `tok` starts one.
+    fn setting(&mut self, tok: &Token<'a>) -> PResult<bool> {
+        if tok.is("reflect:") {
+            let v = self.integer("the reflection depth", 0, Effects::MAX_REFLECT)?;
+            self.scene.settings.reflect = Some(v);
+        } else if tok.is("spp:") {
+            let v = self.integer("samples per pixel", 1, Effects::MAX_SPP)?;
+            self.scene.settings.spp = Some(v);
+        } else if tok.is("shadow_samples:") {
+            let what = "shadow samples per area light";
+            let v = self.integer(what, 1, Effects::MAX_SHADOW_SAMPLES)?;
+            self.scene.settings.shadow_samples = Some(v);
+        } else if tok.is("seed:") {
+            let v = self.integer("the random seed", 0, u32::MAX)?;
+            self.scene.settings.seed = Some(v);
+        } else if tok.is("shutter:") {
+            let (v, t) = self.number("the shutter, a fraction of the frame interval")?;
+            if !(0.0..=1.0).contains(&v) {
+                return Err(self.expected(&t, "a shutter between 0 (no blur) and 1"));
+            }
+            self.scene.settings.shutter = Some(v);
+        } else if tok.is("fps:") {
+            let (v, t) = self.number("frames per second")?;
+            if v <= 0.0 {
+                return Err(self.expected(&t, "a positive number of frames per second"));
+            }
+            self.scene.settings.fps = Some(v);
+        } else {
+            return Ok(false);
+        }
+        Ok(true)
+    }
+
+    fn integer(&mut self, what: &str, min: u32, max: u32) -> PResult<u32> {
+        let (v, tok) = self.number(what)?;
+        if v.fract() != 0.0 || v < f64::from(min) || v > f64::from(max) {
+            return Err(self.expected(
+                &tok,
+                &format!("a whole number from {min} to {max} ({what})"),
+            ));
+        }
+        Ok(v as u32)
     }
 
     fn material(&mut self) -> PResult<Material> {

@@ -1,0 +1,289 @@
+//! The trace shader, specialised per (methods, feature set) at run time:
+//! WGSL parsed once, every `override` resolved by naga's `process_overrides`
+//! (Vulkan specialization constants never reach naga's SPIR-V), then every
+//! `if (FEATURE)` on a resolved constant replaced by the branch it takes,
+//! unreachable functions dropped, the module validated again and written as
+//! SPIR-V. A feature that is off is thus absent from the SPIR-V, not merely
+//! skipped, so the driver compiles (and the GPU runs) only what the scene
+//! calls for.
+
+use std::collections::HashSet;
+use std::sync::OnceLock;
+
+use naga::back::spv;
+use naga::proc::{BoundsCheckPolicies, BoundsCheckPolicy};
+use naga::valid::{Capabilities, ModuleInfo, ValidationFlags, Validator};
+use naga::{Block, Expression, Function, Handle, Literal, Module, Statement};
+
+use crate::info::Features;
+use crate::methods::Methods;
+
+/// The shader source, compiled into the binary.
+pub const TRACE_WGSL: &str = include_str!("../../shaders/trace.wgsl");
+const TRACE_PATH: &str = "shaders/trace.wgsl";
+
+/// The shader failed to compile: a bug in glint, not in the user's input.
+#[derive(Debug, Clone, thiserror::Error)]
+#[error("building the trace shader ({what}) failed: {message}; this is a bug in glint, please report it")]
+pub struct ShaderError {
+    pub what: String,
+    pub message: String,
+}
+
+fn parsed() -> Result<&'static (Module, ModuleInfo), ShaderError> {
+    static PARSED: OnceLock<Result<(Module, ModuleInfo), ShaderError>> = OnceLock::new();
+    PARSED
+        .get_or_init(|| {
+            let fail = |message| ShaderError {
+                what: "parse".into(),
+                message,
+            };
+            let module = naga::front::wgsl::parse_str(TRACE_WGSL)
+                .map_err(|e| fail(e.emit_to_string_with_path(TRACE_WGSL, TRACE_PATH)))?;
+            let info = validator()
+                .validate(&module)
+                .map_err(|e| fail(e.emit_to_string_with_path(TRACE_WGSL, TRACE_PATH)))?;
+            Ok((module, info))
+        })
+        .as_ref()
+        .map_err(Clone::clone)
+}
+
+fn validator() -> Validator {
+    Validator::new(ValidationFlags::all(), Capabilities::empty())
+}
+
+/// The override values of a variant, as `process_overrides` takes them.
+pub fn pipeline_constants(methods: Methods, features: Features) -> naga::back::PipelineConstants {
+    let mut constants = naga::back::PipelineConstants::default();
+    let flag = |on: bool| if on { 1.0 } else { 0.0 };
+    constants.insert("ROBUST".into(), flag(methods == Methods::Robust));
+    for (name, on) in features.overrides() {
+        constants.insert(name.into(), flag(on));
+    }
+    constants
+}
+
+/// The module with its overrides resolved and dead feature branches removed,
+/// validated.
+pub fn specialize(
+    methods: Methods,
+    features: Features,
+) -> Result<(Module, ModuleInfo), ShaderError> {
+    let (module, info) = parsed()?;
+    let what = format!("{} methods, features {}", methods.name(), features.label());
+    let fail = |message: String| ShaderError {
+        what: what.clone(),
+        message,
+    };
+    let constants = pipeline_constants(methods, features);
+    let (resolved, _) =
+        naga::back::pipeline_constants::process_overrides(module, info, None, &constants)
+            .map_err(|e| fail(format!("resolving overrides: {e}")))?;
+    let mut module = resolved.into_owned();
+    let globals = module.clone();
+    for (_, f) in module.functions.iter_mut() {
+        prune_function(f, &globals);
+    }
+    for ep in &mut module.entry_points {
+        prune_function(&mut ep.function, &globals);
+    }
+    naga::compact::compact(&mut module, naga::compact::KeepUnused::No);
+    let info = validator()
+        .validate(&module)
+        .map_err(|e| fail(format!("validation after specialisation: {e:?}")))?;
+    Ok((module, info))
+}
+
+/// SPIR-V words of the specialised shader, all entry points.
+pub fn spirv(methods: Methods, features: Features) -> Result<Vec<u32>, ShaderError> {
+    let (module, info) = specialize(methods, features)?;
+    let options = spv::Options {
+        // SPIR-V 1.0 runs on every Vulkan 1.0 device, MoltenVK included.
+        lang_version: (1, 0),
+        flags: spv::WriterFlags::empty(),
+        // Every index the shader uses comes from our own BVH builder; Restrict
+        // (clamp) still keeps a builder bug from reading out of bounds, at the
+        // cost of a min() per access (not measurable on lavapipe).
+        bounds_check_policies: BoundsCheckPolicies {
+            index: BoundsCheckPolicy::Restrict,
+            buffer: BoundsCheckPolicy::Restrict,
+            image_load: BoundsCheckPolicy::Restrict,
+            binding_array: BoundsCheckPolicy::Restrict,
+        },
+        // A loop the compiler may assume finite must be finite; naga's counter
+        // makes that hold even for a traversal bug, which the host's fence
+        // timeout then reports instead of a hung device. Measured cost on
+        // lavapipe: ~8% of SIGGRAPH's median render (553 vs 599 ms), inside
+        // the run-to-run spread.
+        force_loop_bounding: true,
+        // Without a binding map naga writes each @group/@binding as declared.
+        fake_missing_bindings: true,
+        ..spv::Options::default()
+    };
+    spv::write_vec(&module, &info, &options, None).map_err(|e| ShaderError {
+        what: format!("{} methods, features {}", methods.name(), features.label()),
+        message: format!("SPIR-V generation: {e}"),
+    })
+}
+
+/// The value of a condition that process_overrides made constant.
+fn const_bool(expr: Handle<Expression>, f: &Function, m: &Module) -> Option<bool> {
+    match f.expressions[expr] {
+        Expression::Literal(Literal::Bool(b)) => Some(b),
+        Expression::Constant(c) => match m.global_expressions[m.constants[c].init] {
+            Expression::Literal(Literal::Bool(b)) => Some(b),
+            _ => None,
+        },
+        _ => None,
+    }
+}
+
+fn prune_function(f: &mut Function, m: &Module) {
+    let body = std::mem::take(&mut f.body);
+    f.body = prune_block(body, f, m);
+    // A `let` whose defining statement went with a removed branch names an
+    // expression nothing evaluates any more; compaction keeps named
+    // expressions alive, so drop those names first.
+    let mut defined = HashSet::new();
+    defined_expressions(&f.body, &mut defined);
+    let exprs = &f.expressions;
+    f.named_expressions
+        .retain(|h, _| exprs[*h].needs_pre_emit() || defined.contains(h));
+}
+
+/// Expressions the statements of `block` evaluate: emitted ranges and
+/// call results (the only result-bearing statements the shader uses).
+fn defined_expressions(block: &Block, out: &mut HashSet<Handle<Expression>>) {
+    for statement in block.iter() {
+        match statement {
+            Statement::Emit(range) => out.extend(range.clone()),
+            Statement::Call {
+                result: Some(r), ..
+            } => {
+                out.insert(*r);
+            }
+            Statement::Block(b) => defined_expressions(b, out),
+            Statement::If { accept, reject, .. } => {
+                defined_expressions(accept, out);
+                defined_expressions(reject, out);
+            }
+            Statement::Loop {
+                body, continuing, ..
+            } => {
+                defined_expressions(body, out);
+                defined_expressions(continuing, out);
+            }
+            Statement::Switch { cases, .. } => {
+                for c in cases {
+                    defined_expressions(&c.body, out);
+                }
+            }
+            _ => {}
+        }
+    }
+}
+
+fn prune_block(block: Block, f: &Function, m: &Module) -> Block {
+    let mut out = Block::new();
+    for (statement, span) in block.span_into_iter() {
+        let statement = match statement {
+            Statement::If {
+                condition,
+                accept,
+                reject,
+            } => match const_bool(condition, f, m) {
+                Some(true) => Statement::Block(prune_block(accept, f, m)),
+                Some(false) => Statement::Block(prune_block(reject, f, m)),
+                None => Statement::If {
+                    condition,
+                    accept: prune_block(accept, f, m),
+                    reject: prune_block(reject, f, m),
+                },
+            },
+            Statement::Block(b) => Statement::Block(prune_block(b, f, m)),
+            Statement::Loop {
+                body,
+                continuing,
+                break_if,
+            } => Statement::Loop {
+                body: prune_block(body, f, m),
+                continuing: prune_block(continuing, f, m),
+                break_if,
+            },
+            Statement::Switch { selector, cases } => Statement::Switch {
+                selector,
+                cases: cases
+                    .into_iter()
+                    .map(|mut c| {
+                        c.body = prune_block(std::mem::take(&mut c.body), f, m);
+                        c
+                    })
+                    .collect(),
+            },
+            other => other,
+        };
+        out.push(statement, span);
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn function_names(m: &Module) -> Vec<String> {
+        m.functions
+            .iter()
+            .filter_map(|(_, f)| f.name.clone())
+            .collect()
+    }
+
+    #[test]
+    fn features_that_are_off_leave_the_shader() {
+        let plain = Features {
+            spheres: true,
+            triangles: true,
+            ..Features::default()
+        };
+        let (m, _) = specialize(Methods::Robust, plain).unwrap();
+        let names = function_names(&m);
+        for gone in [
+            "area_term",
+            "light_sample_point",
+            "reflect_path",
+            "stratified_2d",
+            "hit_sphere_naive",
+            "hit_triangle_naive",
+        ] {
+            assert!(!names.iter().any(|n| n == gone), "{gone} in {names:?}");
+        }
+        let (all, _) = specialize(Methods::Robust, Features::ALL).unwrap();
+        let names = function_names(&all);
+        for kept in [
+            "area_term",
+            "light_sample_point",
+            "reflect_path",
+            "stratified_2d",
+        ] {
+            assert!(names.iter().any(|n| n == kept), "{kept} missing: {names:?}");
+        }
+    }
+
+    #[test]
+    fn every_feature_set_compiles() {
+        for bits in 0..64u32 {
+            let f = Features {
+                spheres: bits & 1 != 0,
+                triangles: bits & 2 != 0,
+                reflection: bits & 4 != 0,
+                area_lights: bits & 8 != 0,
+                motion_blur: bits & 16 != 0,
+                multisample: bits & 32 != 0,
+            };
+            for methods in Methods::ALL {
+                spirv(methods, f).unwrap_or_else(|e| panic!("{e}"));
+            }
+        }
+    }
+}
