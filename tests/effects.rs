@@ -148,7 +148,9 @@ fn reflection_depth_zero_equals_the_plain_image_exactly() {
 /// A ground lit by a small sphere light, half of it under a large occluder
 /// between ground and light. Returns (scene, pixels fully in the umbra,
 /// pixels fully outside the penumbra), picked from the geometry.
-fn umbra_scene(radius: f64) -> (Scene, Vec<(u32, u32)>, Vec<(u32, u32)>) {
+type Pixels = Vec<(u32, u32)>;
+
+fn umbra_scene(radius: f64) -> (Scene, Pixels, Pixels) {
     let text = format!(
         "4\namb: 0.1 0.12 0.14\nshadow_samples: 16\n\
          light\npos: 0 4 -8\ncol: 0.9 0.85 0.8\nrad: {radius}\n\
