@@ -400,3 +400,62 @@ fn bench_hard_prints_counts_and_pixels() {
     );
     assert!(out.contains("--pixel "), "{out}");
 }
+
+#[test]
+fn frames_are_numbered_and_split_by_range() {
+    let d = tmp();
+    let scene = repo_path("scenes/effects/motion_blur.scene")
+        .display()
+        .to_string();
+    let small = ["--width", "32", "--height", "24", "--spp", "2"];
+    let mut args = vec!["render", &scene, "anim", "--frames", "3"];
+    args.extend(small);
+    let o = glint(&args, d.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let names: Vec<String> = {
+        let mut v: Vec<String> = std::fs::read_dir(d.path().join("anim"))
+            .expect("frame directory")
+            .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+            .collect();
+        v.sort();
+        v
+    };
+    assert_eq!(names, ["000.jpg", "001.jpg", "002.jpg"]);
+    let frame = |n: &str| std::fs::read(d.path().join("anim").join(n)).expect("frame");
+    assert_ne!(frame("000.jpg"), frame("002.jpg"), "the scene moves");
+
+    // A range renders only its frames, the same images as the full run.
+    let mut args = vec!["render", &scene, "part", "--frames", "3", "--frame-range", "1-2"];
+    args.extend(small);
+    let o = glint(&args, d.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(!d.path().join("part/000.jpg").exists());
+    let part = std::fs::read(d.path().join("part/002.jpg")).expect("frame 2");
+    assert_eq!(part, frame("002.jpg"));
+
+    let mut args = vec!["render", &scene, "bad", "--frames", "3", "--frame-range", "2-5"];
+    args.extend(small);
+    let o = glint(&args, d.path());
+    assert_ne!(o.status.code(), Some(0));
+    assert!(stderr(&o).contains("goes past the last frame"), "{}", stderr(&o));
+    let o = glint(&["render", &scene, "x.jpg", "--frames", "2"], d.path());
+    assert_ne!(o.status.code(), Some(0));
+    assert!(stderr(&o).contains("is a directory"), "{}", stderr(&o));
+}
+
+#[test]
+fn effect_overrides_are_checked() {
+    let d = tmp();
+    for bad in [
+        ["--spp", "0"],
+        ["--shutter", "1.5"],
+        ["--reflect", "65"],
+        ["--fps", "0"],
+    ] {
+        let mut args = vec!["render", "missing.scene"];
+        args.extend(bad);
+        let o = glint(&args, d.path());
+        assert_eq!(o.status.code(), Some(2), "{bad:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(bad[0]), "{bad:?}: {}", stderr(&o));
+    }
+}

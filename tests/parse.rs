@@ -272,3 +272,64 @@ fn numbers_beyond_f32_are_located_errors() {
     assert!(text.contains("big.scene:4:10"), "{text}");
     assert!(text.contains("f32 limit"), "{text}");
 }
+
+#[test]
+fn extensions_parse_and_round_trip() {
+    use glint::scene::{to_classic_text, LightShape};
+    let text = "5\nAMB: 0.1 0.1 0.1\nreflect: 3\nSPP: 16\nshadow_samples: 8\nshutter: .5\nseed: 42\nfps: 30\n\
+        light\npos: 0 5 0\ncol: 1 1 1\nrad: .25\nvel: 1 0 0\n\
+        light\npos: 0 5 -5\ncol: 1 1 1\nedge_u: 1 0 0\nedge_v: 0 0 2\n\
+        light\npos: 0 5 -9\ncol: 1 1 1\n\
+        sphere\npos: 0 0 -5\nrad: 1\ndif: 1 0 0\nspe: 0 0 0\nshi: 1\nVEL: 0 2 0\n\
+        triangle\n\
+        pos: 0 0 -3 nor: 0 0 1 dif: 1 1 1 spe: 0 0 0 shi: 1\n\
+        pos: 1 0 -3 nor: 0 0 1 dif: 1 1 1 spe: 0 0 0 shi: 1\n\
+        pos: 0 1 -3 nor: 0 0 1 dif: 1 1 1 spe: 0 0 0 shi: 1\n\
+        vel: 0 0 -1\n";
+    let scene = scene_from(text);
+    let st = scene.settings;
+    assert_eq!(
+        (st.reflect, st.spp, st.shadow_samples, st.shutter, st.seed, st.fps),
+        (Some(3), Some(16), Some(8), Some(0.5), Some(42), Some(30.0))
+    );
+    assert_eq!(scene.lights[0].shape, LightShape::Sphere { radius: 0.25 });
+    assert_eq!(scene.lights[0].velocity, glam::DVec3::X);
+    assert!(matches!(scene.lights[1].shape, LightShape::Rect { .. }));
+    assert_eq!(scene.lights[2].shape, LightShape::Point);
+    assert_eq!(scene.spheres[0].velocity, glam::DVec3::new(0.0, 2.0, 0.0));
+    assert_eq!(scene.triangles[0].velocity, glam::DVec3::new(0.0, 0.0, -1.0));
+    let again = scene_from(&to_classic_text(&scene));
+    assert_eq!(again, scene);
+    // A classic scene written back stays classic: no extension appears.
+    if let Some(classic) = classic_scene("test2") {
+        let text = to_classic_text(&classic);
+        for word in ["reflect:", "spp:", "vel:", "rad: 0", "edge_u:", "shutter:"] {
+            assert!(!text.contains(word), "{word}");
+        }
+    }
+}
+
+#[test]
+fn bad_extension_values_are_located() {
+    let cases = [
+        ("1\namb: 0 0 0\nspp: 0\n", "3:6", "a whole number from 1 to 65536"),
+        ("1\namb: 0 0 0\nreflect: 1.5\n", "3:10", "a whole number from 0 to 64"),
+        ("1\namb: 0 0 0\nshutter: 2\n", "3:10", "a shutter between 0 (no blur) and 1"),
+        ("1\namb: 0 0 0\nfps: 0\n", "3:6", "a positive number of frames per second"),
+        (
+            "1\namb: 0 0 0\nlight\npos: 0 0 0\ncol: 1 1 1\nrad: -1\n",
+            "6:6",
+            "light radius must be zero or more",
+        ),
+        (
+            "1\namb: 0 0 0\nlight\npos: 0 0 0\ncol: 1 1 1\nedge_u: 1 0 0\nedge_w: 0 1 0\n",
+            "7:1",
+            "expected `edge_v:`",
+        ),
+    ];
+    for (text, at, wanted) in cases {
+        let err = parse_scene(text.as_bytes(), "x.scene").unwrap_err().to_string();
+        assert!(err.starts_with(&format!("x.scene:{at}:")), "{text:?}: {err}");
+        assert!(err.contains(wanted), "{text:?}: {err}");
+    }
+}
