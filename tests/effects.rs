@@ -402,3 +402,36 @@ fn error_falls_at_the_monte_carlo_rate() {
         }
     }
 }
+
+/// One pipeline per (methods, feature set, entry point): built once, then
+/// taken from the cache; another feature set builds its own.
+#[test]
+fn pipelines_are_cached_by_feature_set() {
+    use glint::gpu::{GpuRenderOptions, Kernel};
+    let Some(gpu) = gpu() else {
+        return;
+    };
+    let gpu = gpu.lock().unwrap_or_else(|e| e.into_inner());
+    // Naive methods: a variant no other test in this binary builds.
+    let options = |features| GpuRenderOptions {
+        methods: glint::methods::Methods::Naive,
+        features,
+        ..Default::default()
+    };
+    let a = options(Features {
+        triangles: true,
+        area_lights: true,
+        ..Features::default()
+    });
+    let b = options(Features {
+        triangles: true,
+        multisample: true,
+        ..Features::default()
+    });
+    let first = gpu.renderer.prepare(&a, Kernel::Render).expect("build");
+    assert!(!first.is_zero(), "first use builds");
+    let again = gpu.renderer.prepare(&a, Kernel::Render).expect("cached");
+    assert!(again.is_zero(), "second use is cached");
+    let other = gpu.renderer.prepare(&b, Kernel::Render).expect("build");
+    assert!(!other.is_zero(), "another feature set builds its own");
+}
