@@ -425,7 +425,15 @@ fn frames_are_numbered_and_split_by_range() {
     assert_ne!(frame("000.jpg"), frame("002.jpg"), "the scene moves");
 
     // A range renders only its frames, the same images as the full run.
-    let mut args = vec!["render", &scene, "part", "--frames", "3", "--frame-range", "1-2"];
+    let mut args = vec![
+        "render",
+        &scene,
+        "part",
+        "--frames",
+        "3",
+        "--frame-range",
+        "1-2",
+    ];
     args.extend(small);
     let o = glint(&args, d.path());
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
@@ -433,11 +441,23 @@ fn frames_are_numbered_and_split_by_range() {
     let part = std::fs::read(d.path().join("part/002.jpg")).expect("frame 2");
     assert_eq!(part, frame("002.jpg"));
 
-    let mut args = vec!["render", &scene, "bad", "--frames", "3", "--frame-range", "2-5"];
+    let mut args = vec![
+        "render",
+        &scene,
+        "bad",
+        "--frames",
+        "3",
+        "--frame-range",
+        "2-5",
+    ];
     args.extend(small);
     let o = glint(&args, d.path());
     assert_ne!(o.status.code(), Some(0));
-    assert!(stderr(&o).contains("goes past the last frame"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("goes past the last frame"),
+        "{}",
+        stderr(&o)
+    );
     let o = glint(&["render", &scene, "x.jpg", "--frames", "2"], d.path());
     assert_ne!(o.status.code(), Some(0));
     assert!(stderr(&o).contains("is a directory"), "{}", stderr(&o));

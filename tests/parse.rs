@@ -289,7 +289,14 @@ fn extensions_parse_and_round_trip() {
     let scene = scene_from(text);
     let st = scene.settings;
     assert_eq!(
-        (st.reflect, st.spp, st.shadow_samples, st.shutter, st.seed, st.fps),
+        (
+            st.reflect,
+            st.spp,
+            st.shadow_samples,
+            st.shutter,
+            st.seed,
+            st.fps
+        ),
         (Some(3), Some(16), Some(8), Some(0.5), Some(42), Some(30.0))
     );
     assert_eq!(scene.lights[0].shape, LightShape::Sphere { radius: 0.25 });
@@ -297,7 +304,10 @@ fn extensions_parse_and_round_trip() {
     assert!(matches!(scene.lights[1].shape, LightShape::Rect { .. }));
     assert_eq!(scene.lights[2].shape, LightShape::Point);
     assert_eq!(scene.spheres[0].velocity, glam::DVec3::new(0.0, 2.0, 0.0));
-    assert_eq!(scene.triangles[0].velocity, glam::DVec3::new(0.0, 0.0, -1.0));
+    assert_eq!(
+        scene.triangles[0].velocity,
+        glam::DVec3::new(0.0, 0.0, -1.0)
+    );
     let again = scene_from(&to_classic_text(&scene));
     assert_eq!(again, scene);
     // A classic scene written back stays classic: no extension appears.
@@ -312,10 +322,26 @@ fn extensions_parse_and_round_trip() {
 #[test]
 fn bad_extension_values_are_located() {
     let cases = [
-        ("1\namb: 0 0 0\nspp: 0\n", "3:6", "a whole number from 1 to 65536"),
-        ("1\namb: 0 0 0\nreflect: 1.5\n", "3:10", "a whole number from 0 to 64"),
-        ("1\namb: 0 0 0\nshutter: 2\n", "3:10", "a shutter between 0 (no blur) and 1"),
-        ("1\namb: 0 0 0\nfps: 0\n", "3:6", "a positive number of frames per second"),
+        (
+            "1\namb: 0 0 0\nspp: 0\n",
+            "3:6",
+            "a whole number from 1 to 65536",
+        ),
+        (
+            "1\namb: 0 0 0\nreflect: 1.5\n",
+            "3:10",
+            "a whole number from 0 to 64",
+        ),
+        (
+            "1\namb: 0 0 0\nshutter: 2\n",
+            "3:10",
+            "a shutter between 0 (no blur) and 1",
+        ),
+        (
+            "1\namb: 0 0 0\nfps: 0\n",
+            "3:6",
+            "a positive number of frames per second",
+        ),
         (
             "1\namb: 0 0 0\nlight\npos: 0 0 0\ncol: 1 1 1\nrad: -1\n",
             "6:6",
@@ -328,8 +354,13 @@ fn bad_extension_values_are_located() {
         ),
     ];
     for (text, at, wanted) in cases {
-        let err = parse_scene(text.as_bytes(), "x.scene").unwrap_err().to_string();
-        assert!(err.starts_with(&format!("x.scene:{at}:")), "{text:?}: {err}");
+        let err = parse_scene(text.as_bytes(), "x.scene")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            err.starts_with(&format!("x.scene:{at}:")),
+            "{text:?}: {err}"
+        );
         assert!(err.contains(wanted), "{text:?}: {err}");
     }
 }

@@ -19,6 +19,27 @@ enum BenchCommand {
     /// The hard-case suite (scenes/hard): failure counts per case, backend and
     /// methods, and what the robust methods cost in time.
     Hard(HardArgs),
+    /// Each scene's specialised shader against the generic one (every effect
+    /// compiled in, switched off by the settings): SPIR-V size, pipeline
+    /// build time and render time, as a markdown table.
+    Specialize(SpecializeArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct SpecializeArgs {
+    /// Scene files; default: the classic scenes (when present),
+    /// scenes/*.scene and scenes/effects/*.scene.
+    scenes: Vec<PathBuf>,
+    /// Renders per variant; the report gives the median.
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    repeat: u32,
+    #[arg(long, default_value_t = 320)]
+    width: u32,
+    #[arg(long, default_value_t = 240)]
+    height: u32,
+    /// Vulkan device by index or name (see `glint devices`).
+    #[arg(long)]
+    device: Option<String>,
 }
 
 #[derive(Args, Debug)]
@@ -73,6 +94,7 @@ pub struct SceneArgs {
 pub fn run(args: BenchArgs) -> anyhow::Result<ExitCode> {
     match args.command {
         Some(BenchCommand::Hard(hard)) => run_hard(hard),
+        Some(BenchCommand::Specialize(args)) => run_specialize(args),
         None => run_scenes(args.scenes),
     }
 }
@@ -99,6 +121,29 @@ fn run_hard(args: HardArgs) -> anyhow::Result<ExitCode> {
         );
         return Ok(ExitCode::FAILURE);
     }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn run_specialize(args: SpecializeArgs) -> anyhow::Result<ExitCode> {
+    let scenes = if args.scenes.is_empty() {
+        glint::bench::specialize_scenes(&mut |note| eprintln!("note: {note}"))
+    } else {
+        args.scenes
+    };
+    anyhow::ensure!(
+        !scenes.is_empty(),
+        "no scenes to benchmark: name some scene files"
+    );
+    anyhow::ensure!(args.width > 0 && args.height > 0, "the image needs pixels");
+    let options = glint::bench::SpecializeOptions {
+        scenes,
+        width: args.width,
+        height: args.height,
+        repeat: args.repeat as usize,
+        device: args.device.as_deref().map(DeviceSelector::parse),
+    };
+    let table = glint::bench::run_specialize(&options, &mut |line| eprintln!("{line}"))?;
+    println!("{table}");
     Ok(ExitCode::SUCCESS)
 }
 

@@ -108,6 +108,18 @@ impl TracePipeline {
         Ok(p)
     }
 
+    /// How long building `key`'s pipeline takes from scratch (specialising
+    /// the WGSL, writing SPIR-V, the driver's compile), bypassing the cache;
+    /// the pipeline is destroyed again.
+    pub fn measure_build(&self, key: PipelineKey) -> Result<Duration, GpuError> {
+        let start = Instant::now();
+        let pipeline = self.build(key)?;
+        let elapsed = start.elapsed();
+        // SAFETY: the pipeline was never used.
+        unsafe { self.shared.device.destroy_pipeline(pipeline, None) };
+        Ok(elapsed)
+    }
+
     /// The pipeline for `key`, built on first use; the duration is the
     /// build time (specialisation, SPIR-V and driver compile) when this call
     /// built it, zero when it came from the cache.
@@ -117,6 +129,12 @@ impl TracePipeline {
             return Ok((p, Duration::ZERO));
         }
         let start = Instant::now();
+        let pipeline = self.build(key)?;
+        pipelines.insert(key, pipeline);
+        Ok((pipeline, start.elapsed()))
+    }
+
+    fn build(&self, key: PipelineKey) -> Result<vk::Pipeline, GpuError> {
         let words = super::shader::spirv(key.methods, key.features)?;
         let device = &self.shared.device;
         // SAFETY: valid create infos on a live device; the module is destroyed
@@ -138,8 +156,7 @@ impl TracePipeline {
                 .map_err(|(_, r)| r)
                 .call("vkCreateComputePipelines")?[0]
         };
-        pipelines.insert(key, pipeline);
-        Ok((pipeline, start.elapsed()))
+        Ok(pipeline)
     }
 }
 

@@ -138,6 +138,15 @@ impl GpuRenderer {
         })
     }
 
+    /// Time to build the pipeline `options` call for from scratch (no cache).
+    pub fn measure_build(
+        &self,
+        options: &GpuRenderOptions,
+        kernel: Kernel,
+    ) -> Result<Duration, GpuError> {
+        self.pipeline.measure_build(key(options, kernel))
+    }
+
     /// Builds (or finds in the cache) the pipeline `options` call for;
     /// returns the build time, zero when it was cached.
     pub fn prepare(
