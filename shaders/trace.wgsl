@@ -135,8 +135,8 @@ const OFFSET_INT_SCALE: f32 = 256.0;
 // true: the robust methods cited below. false: the textbook methods with one
 // scene-scale epsilon (Möller-Trumbore with a determinant epsilon, the
 // quadratic-formula sphere test, a fixed origin offset), compiled only into
-// the "naive" variant that `glint bench hard` measures against. Resolved by
-// naga's process_overrides in build.rs, so each variant carries one branch.
+// the "naive" variant that `glint bench hard` measures against. Resolved like
+// the feature overrides (src/gpu/shader.rs), so each variant carries one branch.
 override ROBUST: bool = true;
 // The scene's feature set (see the header).
 override SPHERES: bool = true;

@@ -114,16 +114,21 @@ pub fn default_scenes(note: &mut dyn FnMut(&str)) -> Vec<PathBuf> {
     } else {
         note(&format!("{CLASSIC_DIR} not found: classic scenes skipped"));
     }
-    let mut own: Vec<PathBuf> = std::fs::read_dir("scenes")
+    out.extend(scene_files("scenes"));
+    out
+}
+
+/// The `*.scene` files directly in `dir`, sorted; none if it is missing.
+fn scene_files(dir: &str) -> Vec<PathBuf> {
+    let mut files: Vec<PathBuf> = std::fs::read_dir(dir)
         .into_iter()
         .flatten()
         .flatten()
         .map(|e| e.path())
         .filter(|p| p.extension().is_some_and(|e| e == "scene"))
         .collect();
-    own.sort();
-    out.extend(own);
-    out
+    files.sort();
+    files
 }
 
 fn repeat(n: usize, mut f: impl FnMut() -> Result<(), Error>) -> Result<Option<Stat>, Error> {
@@ -453,15 +458,7 @@ pub struct SpecializeOptions {
 /// and every effect scene.
 pub fn specialize_scenes(note: &mut dyn FnMut(&str)) -> Vec<PathBuf> {
     let mut out = default_scenes(note);
-    let mut effects: Vec<PathBuf> = std::fs::read_dir("scenes/effects")
-        .into_iter()
-        .flatten()
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|e| e == "scene"))
-        .collect();
-    effects.sort();
-    out.extend(effects);
+    out.extend(scene_files("scenes/effects"));
     out
 }
 

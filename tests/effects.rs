@@ -28,15 +28,7 @@ const EFFECT_SCENES: [&str; 5] = [
 /// The foundation's GPU-vs-CPU tolerance; at least one pixel may differ,
 /// since one flipped sample can move a small image's only marginal pixel.
 fn check_agree(name: &str, scene: &Scene, w: u32, h: u32) {
-    let cpu = render_cpu(scene, w, h, Precision::F32, WHITE);
-    assert_finite(name, &cpu);
-    let Some(gpu) = render_gpu(scene, w, h, WHITE) else {
-        return;
-    };
-    assert_finite(name, &gpu);
-    let cmp = compare_framebuffers(&cpu, &gpu, THRESHOLD_LEVELS).expect("same size");
-    let allowed = (((w * h) as f64 * MAX_DIFFERING_FRACTION).floor() as usize).max(1);
-    assert_within(&format!("effects-{name}"), &gpu, &cpu, &cmp, allowed);
+    assert_backends_agree(&format!("effects-{name}"), scene, w, h, 1);
 }
 
 #[test]

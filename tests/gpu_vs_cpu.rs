@@ -4,20 +4,10 @@
 mod common;
 
 use common::*;
-use glint::compare::compare_framebuffers;
-use glint::cpu::Precision;
 use glint::scene::Scene;
 
 fn check(name: &str, scene: &Scene, w: u32, h: u32) {
-    let cpu = render_cpu(scene, w, h, Precision::F32, WHITE);
-    assert_finite(name, &cpu);
-    let Some(gpu) = render_gpu(scene, w, h, WHITE) else {
-        return;
-    };
-    assert_finite(name, &gpu);
-    let cmp = compare_framebuffers(&cpu, &gpu, THRESHOLD_LEVELS).expect("same size");
-    let allowed = ((w * h) as f64 * MAX_DIFFERING_FRACTION).floor() as usize;
-    assert_within(&format!("gpu_vs_cpu-{name}"), &gpu, &cpu, &cmp, allowed);
+    assert_backends_agree(&format!("gpu_vs_cpu-{name}"), scene, w, h, 0);
 }
 
 #[test]

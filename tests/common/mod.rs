@@ -251,3 +251,18 @@ pub const THRESHOLD_LEVELS: f64 = 0.25;
 /// Measured on lavapipe: none. Allowed: 1 in 20,000 pixels (15 at 640x480),
 /// for devices that contract to FMA where lavapipe does not.
 pub const MAX_DIFFERING_FRACTION: f64 = 5e-5;
+
+/// Renders `scene` on the CPU f32 twin and the GPU and holds them to the
+/// tolerance above; `min_allowed` pixels may differ whatever the image size.
+pub fn assert_backends_agree(name: &str, scene: &Scene, w: u32, h: u32, min_allowed: usize) {
+    let cpu = render_cpu(scene, w, h, Precision::F32, WHITE);
+    assert_finite(name, &cpu);
+    let Some(gpu) = render_gpu(scene, w, h, WHITE) else {
+        return;
+    };
+    assert_finite(name, &gpu);
+    let cmp =
+        glint::compare::compare_framebuffers(&cpu, &gpu, THRESHOLD_LEVELS).expect("same size");
+    let allowed = (((w * h) as f64 * MAX_DIFFERING_FRACTION).floor() as usize).max(min_allowed);
+    assert_within(name, &gpu, &cpu, &cmp, allowed);
+}
