@@ -802,12 +802,12 @@ fn radiance(primary: Ray, key: SampleKey) -> vec3<f32> {
 
 fn reflect_path(primary: Ray, first_hit: Hit, first_local: vec3<f32>, key: SampleKey) -> vec3<f32> {
     var ray = primary;
-    var hit = first_hit;
+    // The surface `local` was shaded at, carried from bounce to bounce.
+    var sp = surface_point(primary, first_hit);
     var local = first_local;
     var color = vec3(0.0);
     var weight = vec3(1.0);
     for (var bounce = 0u; bounce < frame.reflect_depth; bounce++) {
-        let sp = surface_point(ray, hit);
         if (all(sp.ks == vec3(0.0))) {
             break;
         }
@@ -818,13 +818,13 @@ fn reflect_path(primary: Ray, first_hit: Hit, first_local: vec3<f32>, key: Sampl
         let dir = safe_normalize(ray.dir - 2.0 * dot(ray.dir, sp.n) * sp.n, sp.n);
         let side = select(-sp.ng, sp.ng, dot(sp.ng, dir) >= 0.0);
         ray = make_ray(offset_ray(sp.p, side, sp.scale), dir, ray.time);
-        hit = trace_closest(ray);
+        let hit = trace_closest(ray);
         if (hit.prim == NO_HIT) {
             local = frame.background.xyz;
             break;
         }
-        let next = surface_point(ray, hit);
-        local = clamp(shade_phong(next, -ray.dir, bounce + 1u, key).color, vec3(0.0), vec3(1.0));
+        sp = surface_point(ray, hit);
+        local = clamp(shade_phong(sp, -ray.dir, bounce + 1u, key).color, vec3(0.0), vec3(1.0));
     }
     return color + weight * local;
 }

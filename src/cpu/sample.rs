@@ -32,13 +32,13 @@ pub fn unit_float<R: Real>(x: u32) -> R {
     R::from_u32(x >> 8) * R::from_f64(1.0 / 16_777_216.0)
 }
 
-/// ceil(sqrt(n)), at least 1.
+/// ceil(sqrt(n)), at least 1: the float root corrected by one either way.
 pub fn grid_columns(n: u32) -> u32 {
-    let mut c = (f64::from(n)).sqrt() as u32;
-    while c * c < n {
+    let mut c = (n as f32).sqrt() as u32;
+    if c * c < n {
         c += 1;
     }
-    while c > 1 && (c - 1) * (c - 1) >= n {
+    if c > 1 && (c - 1) * (c - 1) >= n {
         c -= 1;
     }
     c.max(1)
@@ -58,10 +58,11 @@ pub fn stratified_2d<R: Real>(k: u32, n: u32, rotation: u32, jitter: [R; 2]) -> 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::scene::Effects;
 
     #[test]
     fn grid_columns_is_ceil_sqrt() {
-        for n in 1..5000u32 {
+        for n in 1..=Effects::MAX_SPP {
             let c = grid_columns(n);
             assert!(c * c >= n && (c - 1) * (c - 1) < n, "{n} -> {c}");
         }

@@ -794,13 +794,12 @@ fn reflect_path<R: Real>(
     key: &SampleKey<R>,
 ) -> R::V3 {
     let mut ray = *primary;
-    let mut hit = first_hit;
+    let mut sp = surface_point(scene, primary, &first_hit);
     let mut local = first_local;
     let mut color = R::v3(R::ZERO, R::ZERO, R::ZERO);
     let one = R::v3(R::ONE, R::ONE, R::ONE);
     let mut weight = one;
     for bounce in 0..scene.reflect_depth {
-        let sp = surface_point(scene, &ray, &hit);
         if (0..3).all(|i| sp.ks[i] == R::ZERO) {
             break;
         }
@@ -813,13 +812,13 @@ fn reflect_path<R: Real>(
             -sp.ng
         };
         ray = make_ray(offset_ray(scene, sp.p, side, sp.scale), dir, ray.time);
-        hit = trace_closest(scene, &ray);
+        let hit = trace_closest(scene, &ray);
         if hit.prim == NO_HIT {
             local = scene.background;
             break;
         }
-        let next = surface_point(scene, &ray, &hit);
-        local = R::clamp01(shade_phong(scene, &next, -ray.dir, bounce + 1, key).color);
+        sp = surface_point(scene, &ray, &hit);
+        local = R::clamp01(shade_phong(scene, &sp, -ray.dir, bounce + 1, key).color);
     }
     color + weight * local
 }

@@ -81,12 +81,15 @@ pub fn specialize(
         naga::back::pipeline_constants::process_overrides(module, info, None, &constants)
             .map_err(|e| fail(format!("resolving overrides: {e}")))?;
     let mut module = resolved.into_owned();
-    let globals = module.clone();
+    let constants = Constants {
+        constants: &module.constants,
+        init: &module.global_expressions,
+    };
     for (_, f) in module.functions.iter_mut() {
-        prune_function(f, &globals);
+        prune_function(f, &constants);
     }
     for ep in &mut module.entry_points {
-        prune_function(&mut ep.function, &globals);
+        prune_function(&mut ep.function, &constants);
     }
     naga::compact::compact(&mut module, naga::compact::KeepUnused::No);
     let info = validator()
@@ -127,11 +130,18 @@ pub fn spirv(methods: Methods, features: Features) -> Result<Vec<u32>, ShaderErr
     })
 }
 
+/// The module's constants and their initialisers, borrowed beside its
+/// functions (which pruning mutates).
+struct Constants<'a> {
+    constants: &'a naga::Arena<naga::Constant>,
+    init: &'a naga::Arena<Expression>,
+}
+
 /// The value of a condition that process_overrides made constant.
-fn const_bool(expr: Handle<Expression>, f: &Function, m: &Module) -> Option<bool> {
+fn const_bool(expr: Handle<Expression>, f: &Function, m: &Constants) -> Option<bool> {
     match f.expressions[expr] {
         Expression::Literal(Literal::Bool(b)) => Some(b),
-        Expression::Constant(c) => match m.global_expressions[m.constants[c].init] {
+        Expression::Constant(c) => match m.init[m.constants[c].init] {
             Expression::Literal(Literal::Bool(b)) => Some(b),
             _ => None,
         },
@@ -139,7 +149,7 @@ fn const_bool(expr: Handle<Expression>, f: &Function, m: &Module) -> Option<bool
     }
 }
 
-fn prune_function(f: &mut Function, m: &Module) {
+fn prune_function(f: &mut Function, m: &Constants) {
     let body = std::mem::take(&mut f.body);
     f.body = prune_block(body, f, m);
     // A `let` whose defining statement went with a removed branch names an
@@ -184,7 +194,7 @@ fn defined_expressions(block: &Block, out: &mut HashSet<Handle<Expression>>) {
     }
 }
 
-fn prune_block(block: Block, f: &Function, m: &Module) -> Block {
+fn prune_block(block: Block, f: &Function, m: &Constants) -> Block {
     let mut out = Block::new();
     for (statement, span) in block.span_into_iter() {
         let statement = match statement {
