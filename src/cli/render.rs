@@ -168,12 +168,11 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         },
     };
     if let Some(frames) = args.frames {
-        let dir = match &out {
-            p if !defaulted => p.clone(),
-            _ => {
-                let stem = args.scene.file_stem().unwrap_or(args.scene.as_os_str());
-                PathBuf::from(format!("{}_frames", stem.to_string_lossy()))
-            }
+        let dir = if defaulted {
+            let stem = args.scene.file_stem().unwrap_or(args.scene.as_os_str());
+            PathBuf::from(format!("{}_frames", stem.to_string_lossy()))
+        } else {
+            out
         };
         return animate(&scene, &options, &args, frames, &dir);
     }
