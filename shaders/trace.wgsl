@@ -12,6 +12,24 @@
 //   7  storage, read      array<u32>               primitive refs (bit 31: sphere)
 //   8  storage, rw        array<vec4<f32>>         tile output, linear RGB, row-major
 //   9  storage, read      array<vec4<f32>>         velocities: spheres, then triangles
+//  10  storage, rw        array<PixelState>        render_tile: each pixel's place in its work
+//  11  storage, rw        Status                   per pass: pixels unfinished, invocations cut
+//
+// Bounded work. render_tile does not render a pixel in one go: it runs the
+// pixel's work (samples, bounces, one light term or one area-light sample at
+// a time) as steps of a resumable state machine, and stops when the pass's
+// budget of loop iterations (tile.budget) is spent, saving its place in
+// `state`. The host dispatches passes until no pixel is left. Each step
+// computes what the uninterrupted algorithm (src/cpu/trace.rs: pixel_color,
+// radiance, reflect_path, shade_phong, area_term) computes, in the same
+// order, and every partial sum is stored as the f32 it is, so the image does
+// not depend on where passes split the work. This keeps every invocation
+// below any driver's loop-iteration limit (llvmpipe ends loops early once an
+// invocation has run 65535 iterations of all its loops together) and every
+// dispatch short enough for a watchdog. A loop that ends without its own exit
+// (a driver cut it, or a ray exceeded MAX_TRAVERSAL_STEPS) marks the
+// invocation as cut in `status`: the host retries with a smaller budget or
+// fails naming the pixel, so a truncated result is never taken for an image.
 //
 // Entry points: render_tile (colour), probe_tile (per-pixel hit and shadow
 // verdicts, for the robustness suite) and probe_pixel (one pixel's whole
@@ -46,6 +64,51 @@ struct Frame {
 struct Tile {
     origin: vec2<u32>,
     size: vec2<u32>,
+    // Loop iterations an invocation may start in this pass (at least 1).
+    budget: u32,
+    // 1 on a tile's first pass: state is initialised, not read.
+    first: u32,
+    _pad: vec2<u32>,
+}
+
+// Where a pixel stands in its work between passes (render_tile).
+struct PixelState {
+    // Sum of the finished samples; `sample` is the next one.
+    sum: vec3<f32>,
+    sample: u32,
+    // The sample in progress: reflect_path's colour and bounce.
+    color: vec3<f32>,
+    bounce: u32,
+    weight: vec3<f32>,
+    // Next light to shade at the current hit.
+    light: u32,
+    // shade_phong's running sum at the current hit.
+    shade: vec3<f32>,
+    // Next sample of the area light `light`.
+    area_sample: u32,
+    // area_term's running sum for light `light`.
+    area: vec3<f32>,
+    // The current hit (prim, t, b1, b2) of the current ray.
+    prim: u32,
+    origin: vec3<f32>,
+    t: f32,
+    dir: vec3<f32>,
+    b1: f32,
+    time: f32,
+    b2: f32,
+    // PHASE_START, PHASE_TRACE or PHASE_SHADE.
+    phase: u32,
+    _pad: u32,
+}
+
+struct Status {
+    // Pixels with work left after this pass.
+    remaining: atomic<u32>,
+    // Invocations whose work was cut short, and the smallest such pixel
+    // index (y * width + x).
+    cut: atomic<u32>,
+    first_cut: atomic<u32>,
+    _pad: u32,
 }
 
 struct Sphere {
@@ -101,11 +164,27 @@ struct BvhNode {
 @group(0) @binding(7) var<storage, read> prim_refs: array<u32>;
 @group(0) @binding(8) var<storage, read_write> output: array<vec4<f32>>;
 @group(0) @binding(9) var<storage, read> velocities: array<vec4<f32>>;
+@group(0) @binding(10) var<storage, read_write> state: array<PixelState>;
+@group(0) @binding(11) var<storage, read_write> status: Status;
+
+// Loop iterations this invocation has run (every loop counts, as drivers
+// count them), and whether any of its loops ended without its own exit.
+var<private> work: u32;
+var<private> cut: bool;
 
 const SPHERE_BIT: u32 = 0x80000000u;
 const BVH_MAX_DEPTH: u32 = 64u;
 const WORKGROUP_SIZE: u32 = 8u;
 const NO_HIT: u32 = 0xffffffffu;
+// Most iterations one BVH traversal may take; a ray that needs more is cut
+// (reported, never rendered short). Far above any measured traversal (the
+// hard cases and 2M-triangle scenes stay below a few hundred), and far below
+// llvmpipe's 65535.
+const MAX_TRAVERSAL_STEPS: u32 = 16384u;
+// render_tile's phases: what the next step of a pixel does.
+const PHASE_START: u32 = 0u;
+const PHASE_TRACE: u32 = 1u;
+const PHASE_SHADE: u32 = 2u;
 // Largest finite f32: "no limit" for t without producing inf * 0 anywhere.
 const T_INF: f32 = 3.40282347e38;
 // Robust BVH traversal (Ize 2013, "Robust BVH Ray Traversal", JCGT 2(2)):
@@ -449,7 +528,9 @@ fn light_at(index: u32, time: f32) -> Light {
 
 // Tests the leaf's primitives; `any_hit` returns at the first hit in range.
 fn hit_leaf(ray: Ray, node: BvhNode, best: ptr<function, Hit>, any_hit: bool) -> bool {
-    for (var i = 0u; i < node.count; i++) {
+    var i = 0u;
+    for (; i < node.count; i++) {
+        work += 1u;
         let prim = prim_refs[node.right_or_first + i];
         let index = prim & ~SPHERE_BIT;
         if ((prim & SPHERE_BIT) != 0u) {
@@ -474,6 +555,9 @@ fn hit_leaf(ray: Ray, node: BvhNode, best: ptr<function, Hit>, any_hit: bool) ->
             }
         }
     }
+    if (i < node.count) {
+        cut = true;
+    }
     return false;
 }
 
@@ -487,13 +571,21 @@ fn traverse(ray: Ray, t_max: f32, any_hit: bool) -> Hit {
     var stack: array<u32, BVH_MAX_DEPTH>;
     var sp = 0u;
     var index = 0u;
+    var steps = 0u;
+    var finished = false;
     loop {
+        if (steps >= MAX_TRAVERSAL_STEPS) {
+            break;
+        }
+        steps += 1u;
+        work += 1u;
         let node = nodes[index];
         if (node.count > 0u) {
             if (hit_leaf(ray, node, &best, any_hit)) {
                 return best;
             }
             if (sp == 0u) {
+                finished = true;
                 break;
             }
             sp -= 1u;
@@ -506,6 +598,7 @@ fn traverse(ray: Ray, t_max: f32, any_hit: bool) -> Hit {
         let t_right = hit_aabb(ray, nodes[right].min, nodes[right].max, best.t);
         if (t_left == T_INF && t_right == T_INF) {
             if (sp == 0u) {
+                finished = true;
                 break;
             }
             sp -= 1u;
@@ -521,6 +614,9 @@ fn traverse(ray: Ray, t_max: f32, any_hit: bool) -> Hit {
             stack[sp] = select(left, right, t_left <= t_right);
             sp += 1u;
         }
+    }
+    if (!finished) {
+        cut = true;
     }
     return best;
 }
@@ -702,7 +798,9 @@ fn area_term(sp: SurfacePoint, view: vec3<f32>, light: Light, stream: u32, key: 
     let color = light.color * (1.0 / f32(n));
     var total = LightTerm(vec3(0.0), Hit(0.0, NO_HIT, 0.0, 0.0), 0.0, 0.0, 0.0, vec3(0.0));
     var blocked = 0u;
-    for (var m = 0u; m < n; m++) {
+    var m = 0u;
+    for (; m < n; m++) {
+        work += 1u;
         let jitter = vec2(unit_float(rng(key.pixel, key.sample, stream, 2u * m)),
                           unit_float(rng(key.pixel, key.sample, stream, 2u * m + 1u)));
         let uv = stratified_2d(m, n, rotation, jitter);
@@ -719,6 +817,9 @@ fn area_term(sp: SurfacePoint, view: vec3<f32>, light: Light, stream: u32, key: 
             total.rv = term.rv;
             total.spec = term.spec;
         }
+    }
+    if (m < n) {
+        cut = true;
     }
     if (blocked < n) {
         total.blocker = Hit(0.0, NO_HIT, 0.0, 0.0);
@@ -748,12 +849,17 @@ struct Shading {
 
 fn shade_phong(sp: SurfacePoint, view: vec3<f32>, bounce: u32, key: SampleKey) -> Shading {
     var out = Shading(frame.ambient.xyz, 0u);
-    for (var i = 0u; i < frame.light_count; i++) {
+    var i = 0u;
+    for (; i < frame.light_count; i++) {
+        work += 1u;
         let term = light_term(sp, view, i, bounce, key);
         out.color += term.contribution;
         if (term.blocker.prim != NO_HIT) {
             out.shadow_mask |= 1u << min(i, 31u);
         }
+    }
+    if (i < frame.light_count) {
+        cut = true;
     }
     return out;
 }
@@ -784,54 +890,10 @@ fn trace_primary(ray: Ray, key: SampleKey) -> PixelResult {
     return PixelResult(hit, shading.color, shading.shadow_mask, flags);
 }
 
-// The colour seen along a primary ray, in [0, 1] (ks in [0, 1]): each
-// surface's clamped Phong colour, blended (1 - ks) * local + ks * reflected
-// per channel up to frame.reflect_depth bounces; the last surface reached
-// (or any with ks = 0) keeps its local colour, a ray that misses brings the
-// background. Iterative: the weight carries the product of the ks so far.
-fn radiance(primary: Ray, key: SampleKey) -> vec3<f32> {
-    let first = trace_primary(primary, key);
-    let local = clamp(first.color, vec3(0.0), vec3(1.0));
-    if (REFLECTION) {
-        if (first.hit.prim != NO_HIT && frame.reflect_depth > 0u) {
-            return reflect_path(primary, first.hit, local, key);
-        }
-    }
-    return local;
-}
-
-fn reflect_path(primary: Ray, first_hit: Hit, first_local: vec3<f32>, key: SampleKey) -> vec3<f32> {
-    var ray = primary;
-    // The surface `local` was shaded at, carried from bounce to bounce.
-    var sp = surface_point(primary, first_hit);
-    var local = first_local;
-    var color = vec3(0.0);
-    var weight = vec3(1.0);
-    for (var bounce = 0u; bounce < frame.reflect_depth; bounce++) {
-        if (all(sp.ks == vec3(0.0))) {
-            break;
-        }
-        color += weight * (vec3(1.0) - sp.ks) * local;
-        weight *= sp.ks;
-        // Mirror direction about the shading normal; leave from the side of
-        // the surface it goes to, offset as shadow rays are.
-        let dir = safe_normalize(ray.dir - 2.0 * dot(ray.dir, sp.n) * sp.n, sp.n);
-        let side = select(-sp.ng, sp.ng, dot(sp.ng, dir) >= 0.0);
-        ray = make_ray(offset_ray(sp.p, side, sp.scale), dir, ray.time);
-        let hit = trace_closest(ray);
-        if (hit.prim == NO_HIT) {
-            local = frame.background.xyz;
-            break;
-        }
-        sp = surface_point(ray, hit);
-        local = clamp(shade_phong(sp, -ray.dir, bounce + 1u, key).color, vec3(0.0), vec3(1.0));
-    }
-    return color + weight * local;
-}
-
-// Sample `s` of `n` of pixel (x, y): a stratified position in the pixel
-// (centre when n = 1) and a uniform time in the shutter interval.
-fn sample_color(x: u32, y: u32, s: u32, n: u32) -> vec3<f32> {
+// The camera ray of sample `s` of `n` of pixel (x, y): a stratified
+// position in the pixel (centre when n = 1) and a uniform time in the
+// shutter interval (the CPU's sample_color).
+fn sample_ray(x: u32, y: u32, s: u32, n: u32) -> Ray {
     let pixel = y * frame.size.x + x;
     var offset = vec2(0.5);
     var time = 0.0;
@@ -850,29 +912,204 @@ fn sample_color(x: u32, y: u32, s: u32, n: u32) -> vec3<f32> {
         // stopped falling at ~0.012 RMS from 256 samples on).
         time = frame.shutter * unit_float(rng(pixel, s, STREAM_TIME, 0u));
     }
-    return radiance(camera_ray(x, y, offset, time), SampleKey(pixel, s, time));
+    return camera_ray(x, y, offset, time);
 }
 
-// Box filter over the pixel's samples.
-fn pixel_color(x: u32, y: u32) -> vec3<f32> {
+fn samples_per_pixel() -> u32 {
     if (MULTISAMPLE) {
-        let n = max(frame.spp, 1u);
-        var sum = vec3(0.0);
-        for (var s = 0u; s < n; s++) {
-            sum += sample_color(x, y, s, n);
-        }
-        return sum * (1.0 / f32(n));
+        return max(frame.spp, 1u);
     }
-    return sample_color(x, y, 0u, 1u);
+    return 1u;
 }
 
+fn fresh_state() -> PixelState {
+    return PixelState(vec3(0.0), 0u, vec3(0.0), 0u, vec3(1.0), 0u, vec3(0.0), 0u, vec3(0.0), NO_HIT,
+                      vec3(0.0), 0.0, vec3(0.0), 0.0, 0.0, 0.0, PHASE_START, 0u);
+}
+
+// One term of shade_phong at sp: light `light`, or one sample of it when it
+// is an area light (area_term's loop body), summed as they sum.
+fn shade_step(st: ptr<function, PixelState>, sp: SurfacePoint, view: vec3<f32>, key: SampleKey) {
+    let i = (*st).light;
+    let light = light_at(i, key.time);
+    if (AREA_LIGHTS) {
+        if (light.kind != LIGHT_POINT) {
+            let stream = STREAM_LIGHT + ((*st).bounce << 24u) + i;
+            let n = max(frame.shadow_samples, 1u);
+            let m = (*st).area_sample;
+            let rotation = rng(key.pixel, key.sample, stream, ROTATION);
+            let color = light.color * (1.0 / f32(n));
+            let jitter = vec2(unit_float(rng(key.pixel, key.sample, stream, 2u * m)),
+                              unit_float(rng(key.pixel, key.sample, stream, 2u * m + 1u)));
+            let uv = stratified_2d(m, n, rotation, jitter);
+            let term = point_term(sp, view, light_sample_point(light, sp.p, uv), color, key.time);
+            (*st).area += term.contribution;
+            (*st).area_sample = m + 1u;
+            if (m + 1u >= n) {
+                (*st).shade += (*st).area;
+                (*st).area = vec3(0.0);
+                (*st).area_sample = 0u;
+                (*st).light = i + 1u;
+            }
+            return;
+        }
+    }
+    let term = point_term(sp, view, light.position, light.color, key.time);
+    (*st).shade += term.contribution;
+    (*st).light = i + 1u;
+}
+
+// The sample's ray leaves sp, whose clamped colour is `local`, in the mirror
+// direction: reflect_path's loop body.
+fn reflect_off(st: ptr<function, PixelState>, sp: SurfacePoint, local: vec3<f32>) {
+    (*st).color += (*st).weight * (vec3(1.0) - sp.ks) * local;
+    (*st).weight *= sp.ks;
+    // Mirror direction about the shading normal; leave from the side of the
+    // surface it goes to, offset as shadow rays are.
+    let d = (*st).dir;
+    let dir = safe_normalize(d - 2.0 * dot(d, sp.n) * sp.n, sp.n);
+    let side = select(-sp.ng, sp.ng, dot(sp.ng, dir) >= 0.0);
+    (*st).origin = offset_ray(sp.p, side, sp.scale);
+    (*st).dir = dir;
+    (*st).bounce += 1u;
+    (*st).phase = PHASE_TRACE;
+}
+
+// The pixel's work from where the last pass left it, until it is done or
+// this pass's budget is spent. Box filter over the pixel's samples; each
+// sample is radiance() along its camera ray. The loops nest as the CPU's
+// functions do (samples, bounces, lights), so the lanes of a SIMD device
+// step through the same code together; each loop starts where the saved
+// state says. Every statement costs on SIMD CPUs such as llvmpipe even where
+// no lane takes it, so the hot loops hold no save or resume code: a spent
+// budget only breaks out, and the state is saved once at the end.
 @compute @workgroup_size(WORKGROUP_SIZE, WORKGROUP_SIZE)
 fn render_tile(@builtin(global_invocation_id) id: vec3<u32>) {
     if (id.x >= tile.size.x || id.y >= tile.size.y) {
         return;
     }
-    let color = pixel_color(tile.origin.x + id.x, tile.origin.y + id.y);
-    output[id.y * tile.size.x + id.x] = vec4(clamp(color, vec3(0.0), vec3(1.0)), 1.0);
+    let x = tile.origin.x + id.x;
+    let y = tile.origin.y + id.y;
+    let slot = id.y * tile.size.x + id.x;
+    let n = samples_per_pixel();
+    var st = fresh_state();
+    if (tile.first == 0u) {
+        st = state[slot];
+        if (st.sample >= n) {
+            return;
+        }
+    }
+    let pixel = y * frame.size.x + x;
+    work = 0u;
+    cut = false;
+    var paused = false;
+    loop {
+        if (st.sample >= n || paused || cut) {
+            break;
+        }
+        if (st.phase == PHASE_START) {
+            let primary = sample_ray(x, y, st.sample, n);
+            st.origin = primary.origin;
+            st.dir = primary.dir;
+            st.time = primary.time;
+            st.color = vec3(0.0);
+            st.weight = vec3(1.0);
+            st.bounce = 0u;
+            st.phase = PHASE_TRACE;
+        }
+        // The sample's bounces: trace, then shade every light at the hit.
+        loop {
+            let ray = make_ray(st.origin, st.dir, st.time);
+            if (st.phase == PHASE_TRACE) {
+                if (work >= tile.budget) {
+                    paused = true;
+                    break;
+                }
+                work += 1u;
+                let hit = trace_closest(ray);
+                st.prim = hit.prim;
+                st.t = hit.t;
+                st.b1 = hit.b1;
+                st.b2 = hit.b2;
+                st.shade = frame.ambient.xyz;
+                st.light = 0u;
+                st.area = vec3(0.0);
+                st.area_sample = 0u;
+                st.phase = PHASE_SHADE;
+            }
+            if (cut) {
+                break;
+            }
+            // trace_primary's background is clamped as every local colour
+            // is; a reflected ray's is not (reflect_path).
+            var local = frame.background.xyz;
+            if (st.bounce == 0u) {
+                local = clamp(local, vec3(0.0), vec3(1.0));
+            }
+            if (st.prim != NO_HIT) {
+                let sp = surface_point(ray, Hit(st.t, st.prim, st.b1, st.b2));
+                let key = SampleKey(pixel, st.sample, st.time);
+                loop {
+                    if (st.light >= frame.light_count || work >= tile.budget || cut) {
+                        break;
+                    }
+                    work += 1u;
+                    shade_step(&st, sp, -ray.dir, key);
+                }
+                if (st.light < frame.light_count) {
+                    if (work >= tile.budget && !cut) {
+                        paused = true;
+                    } else {
+                        cut = true;
+                    }
+                    break;
+                }
+                local = clamp(st.shade, vec3(0.0), vec3(1.0));
+                if (REFLECTION) {
+                    if (st.bounce < frame.reflect_depth && !all(sp.ks == vec3(0.0))) {
+                        reflect_off(&st, sp, local);
+                        continue;
+                    }
+                }
+            }
+            // The sample ends with `local` as its last surface's colour (or
+            // the background): reflect_path's return, added to the sum.
+            st.sum += st.color + st.weight * local;
+            st.sample += 1u;
+            st.phase = PHASE_START;
+            break;
+        }
+    }
+    if (st.sample < n && !paused) {
+        cut = true;
+    }
+    if (cut) {
+        atomicAdd(&status.cut, 1u);
+        atomicMin(&status.first_cut, pixel);
+        return;
+    }
+    if (paused) {
+        state[slot] = st;
+        atomicAdd(&status.remaining, 1u);
+        return;
+    }
+    // Later passes of this tile skip the pixel; without this they would
+    // read whatever an earlier tile left in its state slot.
+    state[slot].sample = st.sample;
+    var color = st.sum;
+    if (MULTISAMPLE) {
+        color = st.sum * (1.0 / f32(n));
+    }
+    output[slot] = vec4(clamp(color, vec3(0.0), vec3(1.0)), 1.0);
+}
+
+// Probes run in one invocation per pixel; a cut one is reported like
+// render_tile's.
+fn report_cut(x: u32, y: u32) {
+    if (cut) {
+        atomicAdd(&status.cut, 1u);
+        atomicMin(&status.first_cut, y * frame.size.x + x);
+    }
 }
 
 fn centre_key(x: u32, y: u32) -> SampleKey {
@@ -888,9 +1125,12 @@ fn probe_tile(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     let x = tile.origin.x + id.x;
     let y = tile.origin.y + id.y;
+    work = 0u;
+    cut = false;
     let r = trace_primary(pixel_ray(x, y), centre_key(x, y));
     output[id.y * tile.size.x + id.x] =
         vec4(bitcast<f32>(r.hit.prim), bitcast<f32>(r.shadow_mask), bitcast<f32>(r.flags), r.hit.t);
+    report_cut(x, y);
 }
 
 // The path of pixel tile.origin, as many lights as the output holds. One
@@ -903,11 +1143,14 @@ fn probe_pixel(@builtin(local_invocation_index) lane: u32) {
     }
     let key = centre_key(tile.origin.x, tile.origin.y);
     let ray = pixel_ray(tile.origin.x, tile.origin.y);
+    work = 0u;
+    cut = false;
     let r = trace_primary(ray, key);
     output[0] = vec4(bitcast<f32>(r.hit.prim), r.hit.t, r.hit.b1, r.hit.b2);
     output[1] = vec4(ray.dir, bitcast<f32>(r.flags));
     output[2] = vec4(r.color, bitcast<f32>(r.shadow_mask));
     if (r.hit.prim == NO_HIT) {
+        report_cut(tile.origin.x, tile.origin.y);
         return;
     }
     let room = (arrayLength(&output) - PATH_HEADER) / PATH_PER_LIGHT;
@@ -918,11 +1161,16 @@ fn probe_pixel(@builtin(local_invocation_index) lane: u32) {
     output[5] = vec4(sp.ng, 0.0);
     output[6] = vec4(sp.kd, 0.0);
     output[7] = vec4(sp.ks, 0.0);
-    for (var i = 0u; i < shown; i++) {
+    var i = 0u;
+    for (; i < shown; i++) {
         let term = light_term(sp, -ray.dir, i, 0u, key);
         let base = PATH_HEADER + PATH_PER_LIGHT * i;
         output[base] = vec4(term.origin, bitcast<f32>(term.blocker.prim));
         output[base + 1u] = vec4(term.ln, term.rv, term.spec, term.blocker.t);
         output[base + 2u] = vec4(term.contribution, 0.0);
     }
+    if (i < shown) {
+        cut = true;
+    }
+    report_cut(tile.origin.x, tile.origin.y);
 }

@@ -61,6 +61,7 @@ pub fn write_image(img: &RgbImage, path: &Path, jpeg_quality: u8) -> Result<(), 
         .suffix(".part")
         .tempfile_in(dir)
         .map_err(wrap)?;
+    let _registered = PartialFile::register(tmp.path());
     {
         let mut w = std::io::BufWriter::new(tmp.as_file_mut());
         let encoded = match format {
@@ -85,6 +86,37 @@ pub fn write_image(img: &RgbImage, path: &Path, jpeg_quality: u8) -> Result<(), 
     }
     tmp.persist(path).map_err(|e| wrap(e.error))?;
     Ok(())
+}
+
+/// Temporary files being written right now, so that a signal handler can
+/// remove them (`remove_partial_files`): a drop never runs when a signal
+/// ends the process.
+static PARTIAL_FILES: std::sync::Mutex<Vec<std::path::PathBuf>> = std::sync::Mutex::new(Vec::new());
+
+struct PartialFile(std::path::PathBuf);
+
+impl PartialFile {
+    fn register(path: &Path) -> PartialFile {
+        let mut files = PARTIAL_FILES.lock().unwrap_or_else(|e| e.into_inner());
+        files.push(path.to_path_buf());
+        PartialFile(path.to_path_buf())
+    }
+}
+
+impl Drop for PartialFile {
+    fn drop(&mut self) {
+        let mut files = PARTIAL_FILES.lock().unwrap_or_else(|e| e.into_inner());
+        files.retain(|p| p != &self.0);
+    }
+}
+
+/// Removes every image file still being written; for a SIGINT/SIGTERM
+/// handler, which then exits.
+pub fn remove_partial_files() {
+    let files = PARTIAL_FILES.lock().unwrap_or_else(|e| e.into_inner());
+    for p in files.iter() {
+        let _ = std::fs::remove_file(p);
+    }
 }
 
 fn image_format(path: &Path) -> Result<ImageFormat, Error> {

@@ -52,7 +52,8 @@ pub struct GpuFrame {
     pub shutter: f32,
 }
 
-/// Per-dispatch constants (uniform, binding 1): the tile this dispatch renders.
+/// Per-dispatch constants (uniform, binding 1): the tile this dispatch
+/// renders, and how much of its work one pass may do.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuTile {
@@ -60,7 +61,64 @@ pub struct GpuTile {
     pub origin: [u32; 2],
     /// Tile width and height (edge tiles are smaller).
     pub size: [u32; 2],
+    /// Loop iterations one invocation may start in this pass (at least 1).
+    pub budget: u32,
+    /// 1 on the tile's first pass: the shader initialises the pixel state.
+    pub first: u32,
+    pub _pad: [u32; 2],
 }
+
+/// One pixel's place in its work between passes (storage, binding 10); only
+/// the shader reads and writes it, the host sizes it.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuPixelState {
+    pub sum: [f32; 3],
+    pub sample: u32,
+    pub color: [f32; 3],
+    pub bounce: u32,
+    pub weight: [f32; 3],
+    pub light: u32,
+    pub shade: [f32; 3],
+    pub area_sample: u32,
+    pub area: [f32; 3],
+    pub prim: u32,
+    pub origin: [f32; 3],
+    pub t: f32,
+    pub dir: [f32; 3],
+    pub b1: f32,
+    pub time: f32,
+    pub b2: f32,
+    pub phase: u32,
+    pub _pad: u32,
+}
+
+/// What a pass reports (storage, binding 11), reset before each pass.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Pod, Zeroable)]
+pub struct GpuStatus {
+    /// Pixels with work left after the pass.
+    pub remaining: u32,
+    /// Invocations whose work was cut short (a driver ended a loop early,
+    /// or a ray exceeded `MAX_TRAVERSAL_STEPS`).
+    pub cut: u32,
+    /// The smallest cut pixel index, `y * width + x` (`u32::MAX`: none).
+    pub first_cut: u32,
+    pub _pad: u32,
+}
+
+impl GpuStatus {
+    /// The value a pass starts from.
+    pub const RESET: GpuStatus = GpuStatus {
+        remaining: 0,
+        cut: 0,
+        first_cut: u32::MAX,
+        _pad: 0,
+    };
+}
+
+/// Most iterations one BVH traversal may take in the shader.
+pub const MAX_TRAVERSAL_STEPS: u32 = 16384;
 
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]

@@ -9,6 +9,13 @@ use std::process::ExitCode;
 use clap::Parser;
 
 fn main() -> ExitCode {
+    // An interrupted image write leaves no `.part` file behind: a signal
+    // ends the process without running drops, so the handler removes them.
+    // 130 = 128 + SIGINT, the shell's convention.
+    let _ = ctrlc::set_handler(|| {
+        glint::framebuffer::remove_partial_files();
+        std::process::exit(130);
+    });
     let args = cli::Cli::parse();
     match cli::run(args) {
         Ok(code) => code,

@@ -94,7 +94,10 @@ pub struct RenderOutput {
 
 /// Where the work runs, chosen once from `RenderOptions`.
 enum Engine {
-    Gpu { ctx: Context, renderer: GpuRenderer },
+    Gpu {
+        ctx: Context,
+        renderer: Box<GpuRenderer>,
+    },
     Cpu(Precision),
 }
 
@@ -149,7 +152,7 @@ impl Renderer {
             match Context::new(&context_options) {
                 Ok(ctx) => {
                     timings.add("device", start.elapsed());
-                    let renderer = GpuRenderer::new(&ctx)?;
+                    let renderer = Box::new(GpuRenderer::new(&ctx)?);
                     engine = Engine::Gpu { ctx, renderer };
                 }
                 Err(e) if options.backend == Backend::Auto => {

@@ -7,6 +7,8 @@ use std::time::{Duration, Instant};
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Timings {
     pub phases: Vec<(&'static str, Duration)>,
+    /// Counts that go with the phases (e.g. GPU passes), shown after them.
+    pub counts: Vec<(&'static str, u64)>,
 }
 
 impl Timings {
@@ -29,9 +31,27 @@ impl Timings {
         self.phases.iter().map(|p| p.1).sum()
     }
 
+    pub fn count(&mut self, name: &'static str, n: u64) {
+        match self.counts.iter_mut().find(|(c, _)| *c == name) {
+            Some((_, total)) => *total += n,
+            None => self.counts.push((name, n)),
+        }
+    }
+
+    /// The count recorded under `name`, 0 if none.
+    pub fn counted(&self, name: &str) -> u64 {
+        self.counts
+            .iter()
+            .find(|(c, _)| *c == name)
+            .map_or(0, |c| c.1)
+    }
+
     pub fn extend(&mut self, other: &Timings) {
         for &(name, d) in &other.phases {
             self.add(name, d);
+        }
+        for &(name, n) in &other.counts {
+            self.count(name, n);
         }
     }
 }
@@ -46,6 +66,10 @@ impl fmt::Display for Timings {
             "  {:<10} {:>10.3} ms",
             "total",
             self.total().as_secs_f64() * 1e3
-        )
+        )?;
+        for (name, n) in &self.counts {
+            write!(f, "\n  {name:<10} {n:>10}")?;
+        }
+        Ok(())
     }
 }

@@ -66,7 +66,33 @@ fn structs_match() {
             shutter
         ]
     );
-    check_struct!(m, "Tile", GpuTile, [origin, size]);
+    check_struct!(m, "Tile", GpuTile, [origin, size, budget, first, _pad]);
+    check_struct!(
+        m,
+        "PixelState",
+        GpuPixelState,
+        [
+            sum,
+            sample,
+            color,
+            bounce,
+            weight,
+            light,
+            shade,
+            area_sample,
+            area,
+            prim,
+            origin,
+            t,
+            dir,
+            b1,
+            time,
+            b2,
+            phase,
+            _pad
+        ]
+    );
+    check_struct!(m, "Status", GpuStatus, [remaining, cut, first_cut, _pad]);
     check_struct!(
         m,
         "Sphere",
@@ -102,6 +128,7 @@ fn bindings_match_the_pipeline_and_array_strides_match_rust() {
         (7, size_of::<u32>()),
         (8, 16),
         (9, 16),
+        (10, size_of::<GpuPixelState>()),
     ];
     let mut seen = Vec::new();
     for (_, var) in m.global_variables.iter() {
@@ -170,6 +197,10 @@ fn shared_constants_match() {
         Literal::U32(FLAG_NONFINITE_SURFACE)
     );
     assert_eq!(constant(&m, "PATH_HEADER"), Literal::U32(PATH_HEADER));
+    assert_eq!(
+        constant(&m, "MAX_TRAVERSAL_STEPS"),
+        Literal::U32(MAX_TRAVERSAL_STEPS)
+    );
     assert_eq!(constant(&m, "PATH_PER_LIGHT"), Literal::U32(PATH_PER_LIGHT));
     assert_eq!(constant(&m, "LIGHT_POINT"), Literal::U32(LIGHT_POINT));
     assert_eq!(constant(&m, "LIGHT_SPHERE"), Literal::U32(LIGHT_SPHERE));

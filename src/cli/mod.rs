@@ -130,4 +130,11 @@ pub fn print_warnings(scene: &glint::scene::Scene) {
     for w in &scene.warnings {
         eprintln!("warning: {w}");
     }
+    if scene.more_warnings > 0 {
+        eprintln!(
+            "warning: {} more warnings like the above (only the first {} of each kind are shown)",
+            scene.more_warnings,
+            glint::scene::WARNINGS_KEPT
+        );
+    }
 }

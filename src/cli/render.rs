@@ -50,6 +50,15 @@ pub struct RenderArgs {
     /// lavapipe's 128 MiB per-buffer limit.
     #[arg(long, default_value_t = glint::gpu::GpuRenderOptions::default().tile_size, value_parser = clap::value_parser!(u32).range(8..=2048))]
     tile: u32,
+    /// GPU: loop iterations one shader invocation may run per pass (a pass
+    /// is one dispatch per tile); a pixel needing more continues in further
+    /// passes, with the same image. Bounds every dispatch's work whatever
+    /// the scene asks for.
+    #[arg(long, value_name = "N", default_value_t = glint::gpu::DEFAULT_PASS_BUDGET, value_parser = clap::value_parser!(u32).range(1..))]
+    pass_budget: u32,
+    /// GPU: seconds to wait for one pass before failing (exit 1).
+    #[arg(long, value_name = "SECONDS", default_value_t = glint::gpu::GpuRenderOptions::default().pass_timeout.as_secs_f64(), value_parser = parse_seconds)]
+    pass_timeout: f64,
     /// Print timings (parse, BVH build, pipeline, upload, dispatch, readback).
     #[arg(short, long)]
     verbose: bool,
@@ -113,6 +122,15 @@ fn parse_pixel(s: &str) -> Result<[u32; 2], String> {
     }
 }
 
+fn parse_seconds(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 && v <= 1e6 => Ok(v),
+        _ => Err(format!(
+            "expected a number of seconds above 0 (e.g. 120), found `{s}`"
+        )),
+    }
+}
+
 fn parse_rgb(s: &str) -> Result<[f32; 3], String> {
     let parts: Vec<&str> = s.split(',').map(str::trim).collect();
     let values: Result<Vec<f32>, _> = parts.iter().map(|p| p.parse::<f32>()).collect();
@@ -164,6 +182,8 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         generic: args.generic_shader,
         gpu: glint::gpu::GpuRenderOptions {
             tile_size: args.tile,
+            pass_budget: args.pass_budget,
+            pass_timeout: Duration::from_secs_f64(args.pass_timeout),
             ..Default::default()
         },
     };
@@ -201,12 +221,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
             glint::framebuffer::to_u8(rgb[1] as f32),
             glint::framebuffer::to_u8(rgb[2] as f32)
         );
-        if probed.validation_messages > 0 {
-            eprintln!(
-                "warning: the Vulkan validation layer reported {} message(s)",
-                probed.validation_messages
-            );
-        }
+        validation_verdict(probed.validation_messages)?;
         if args.verbose {
             println!("took {:.1} ms", start.elapsed().as_secs_f64() * 1e3);
         }
@@ -233,12 +248,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
     if let Some(note) = &output.note {
         eprintln!("note: {note}");
     }
-    if output.validation_messages > 0 {
-        eprintln!(
-            "warning: the Vulkan validation layer reported {} message(s)",
-            output.validation_messages
-        );
-    }
+    validation_verdict(output.validation_messages)?;
     let write_start = Instant::now();
     write_image(&output.framebuffer.to_rgb8(), &out, args.quality)
         .with_context(|| format!("rendering {}", args.scene.display()))?;
@@ -263,6 +273,18 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         println!("timings:\n{timings}");
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// A render the validation layer complained about may be wrong: an error
+/// (exit 1), before anything is written.
+fn validation_verdict(messages: u32) -> anyhow::Result<()> {
+    if messages > 0 {
+        anyhow::bail!(
+            "the Vulkan validation layer reported {messages} message(s) (printed above); \
+             the result may be wrong, so nothing was written. Please report this with the scene"
+        );
+    }
+    Ok(())
 }
 
 /// Renders frames of an animation with one `Renderer` (device and pipelines
@@ -322,6 +344,8 @@ fn animate(
     for i in first..=last {
         let at = scene.at_time(effects.frame_time(i));
         let output = renderer.render(&at, &|_, _| {})?;
+        validation_verdict(renderer.validation_messages())
+            .with_context(|| format!("rendering frame {i}"))?;
         let path = dir.join(format!("{i:0digits$}.{ext}"));
         write_image(&output.framebuffer.to_rgb8(), &path, args.quality)
             .with_context(|| format!("writing frame {i}"))?;
@@ -331,12 +355,6 @@ fn animate(
         bar.inc(1);
     }
     bar.finish_and_clear();
-    if renderer.validation_messages() > 0 {
-        eprintln!(
-            "warning: the Vulkan validation layer reported {} message(s)",
-            renderer.validation_messages()
-        );
-    }
     println!(
         "wrote frames {first:0digits$}..{last:0digits$}.{ext} to {} ({}x{}, {}, {:.2} s, {} fps scene time)",
         dir.display(),

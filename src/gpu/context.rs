@@ -73,8 +73,46 @@ pub(crate) struct Shared {
     pub queue_family: u32,
     allocator: ManuallyDrop<Mutex<Allocator>>,
     pub info: DeviceInfo,
+    pub limits: DeviceLimits,
     pub validation: bool,
     poisoned: AtomicBool,
+}
+
+/// The device limits a render must stay within.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct DeviceLimits {
+    /// `maxStorageBufferRange`: the largest storage binding, in bytes.
+    pub max_storage_range: u64,
+    /// `maxUniformBufferRange`.
+    pub max_uniform_range: u64,
+    /// `maxMemoryAllocationSize` (Vulkan 1.1; the spec's minimum, 1 GiB,
+    /// where the device does not say).
+    pub max_allocation: u64,
+    /// `maxComputeWorkGroupCount`.
+    pub max_group_count: [u32; 3],
+    /// `maxPerStageDescriptorStorageBuffers`.
+    pub max_storage_buffers: u32,
+}
+
+fn limits_of(inst: &ash::Instance, pd: vk::PhysicalDevice) -> DeviceLimits {
+    // SAFETY: plain queries on a physical device of this instance.
+    let props = unsafe { inst.get_physical_device_properties(pd) };
+    let mut max_allocation = 1u64 << 30;
+    if props.api_version >= vk::API_VERSION_1_1 {
+        let mut m3 = vk::PhysicalDeviceMaintenance3Properties::default();
+        let mut props2 = vk::PhysicalDeviceProperties2::default().push_next(&mut m3);
+        // SAFETY: 1.1 device: the maintenance3 chain is valid.
+        unsafe { inst.get_physical_device_properties2(pd, &mut props2) };
+        max_allocation = m3.max_memory_allocation_size;
+    }
+    let l = props.limits;
+    DeviceLimits {
+        max_storage_range: u64::from(l.max_storage_buffer_range),
+        max_uniform_range: u64::from(l.max_uniform_buffer_range),
+        max_allocation,
+        max_group_count: l.max_compute_work_group_count,
+        max_storage_buffers: l.max_per_stage_descriptor_storage_buffers,
+    }
 }
 
 impl Shared {
@@ -154,7 +192,9 @@ fn create_instance(validation: bool) -> Result<Instance, GpuError> {
     let has_layer = layers
         .iter()
         .any(|l| l.layer_name_as_c_str() == Ok(VALIDATION_LAYER));
-    let validation = validation && has_layer;
+    if validation && !has_layer {
+        return Err(GpuError::NoValidationLayer);
+    }
     let mut ext_names: Vec<*const c_char> = Vec::new();
     let mut flags = vk::InstanceCreateFlags::empty();
     // MoltenVK only shows up through portability enumeration.
@@ -402,6 +442,7 @@ impl Context {
         // SAFETY: the family was requested with one queue at device creation.
         let queue = unsafe { device.get_device_queue(queue_family, 0) };
         let validation = instance.debug.is_some();
+        let limits = limits_of(&instance.instance, physical);
         Ok(Context {
             shared: Arc::new(Shared {
                 _entry: instance.entry,
@@ -412,6 +453,7 @@ impl Context {
                 queue_family,
                 allocator: ManuallyDrop::new(Mutex::new(allocator)),
                 info,
+                limits,
                 validation,
                 poisoned: AtomicBool::new(false),
             }),
@@ -420,6 +462,10 @@ impl Context {
 
     pub fn info(&self) -> &DeviceInfo {
         &self.shared.info
+    }
+
+    pub fn limits(&self) -> &DeviceLimits {
+        &self.shared.limits
     }
 
     /// Whether the validation layer and its messenger are active.

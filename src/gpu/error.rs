@@ -14,6 +14,12 @@ pub enum GpuError {
          (e.g. `apt-get install mesa-vulkan-drivers` for lavapipe) or use `--backend cpu`"
     )]
     NoDevice,
+    #[error(
+        "the Vulkan validation layer (VK_LAYER_KHRONOS_validation) is not installed; \
+         install it (`apt-get install vulkan-validationlayers` on Debian/Ubuntu) or drop \
+         --validation / GLINT_VALIDATION"
+    )]
+    NoValidationLayer,
     #[error("no Vulkan device matches `{0}`; `glint devices` lists the devices and their indices")]
     DeviceNotFound(String),
     #[error("{call} failed: {result}")]
@@ -24,10 +30,43 @@ pub enum GpuError {
     #[error("GPU memory allocation for {what} failed: {message}")]
     Alloc { what: String, message: String },
     #[error(
-        "the GPU did not finish the tile at pixel ({x}, {y}) within {seconds} s; the device \
-         may be hung or very slow: try a smaller tile size or another device"
+        "the GPU did not finish pass {pass} of the tile at pixel ({x}, {y}) within {seconds} s \
+         (at most {budget} loop iterations per pixel); the device may be hung or very busy: \
+         shrink the pass with a smaller --pass-budget or --tile, allow more time with \
+         --pass-timeout, or use another device"
     )]
-    Timeout { x: u32, y: u32, seconds: u64 },
+    Timeout {
+        x: u32,
+        y: u32,
+        pass: u32,
+        budget: u32,
+        seconds: u64,
+    },
+    #[error(
+        "the shader could not finish {what} pixel ({x}, {y}) ({cut} invocations cut short{retried}): \
+         a ray took more than {max} BVH steps, or the driver ended a loop early; the image would \
+         be wrong, so nothing was written. Render with --backend cpu, or report the scene",
+        what = if *probe { "probing" } else { "rendering" },
+        retried = if *probe { "" } else { ", even at a pass budget of 1" },
+        max = crate::layout::MAX_TRAVERSAL_STEPS
+    )]
+    Incomplete {
+        x: u32,
+        y: u32,
+        cut: u32,
+        probe: bool,
+    },
+    #[error(
+        "{what} needs {needed} but this device allows {limit} ({limit_name}); nothing was \
+         rendered: {hint}"
+    )]
+    Limit {
+        what: String,
+        needed: u64,
+        limit_name: &'static str,
+        limit: u64,
+        hint: String,
+    },
     #[error(
         "the Vulkan device was lost while rendering the tile at pixel ({x}, {y}) \
          (the driver reset it or it crashed)"

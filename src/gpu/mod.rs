@@ -15,7 +15,9 @@ mod pipeline;
 mod render;
 pub mod shader;
 
-pub use context::{list_devices, Context, ContextOptions, DeviceInfo, DeviceSelector};
+pub use context::{
+    list_devices, Context, ContextOptions, DeviceInfo, DeviceLimits, DeviceSelector,
+};
 pub use error::GpuError;
 pub use pipeline::{Kernel, BINDINGS};
-pub use render::{GpuRenderOptions, GpuRenderer};
+pub use render::{GpuRenderOptions, GpuRenderer, DEFAULT_PASS_BUDGET};

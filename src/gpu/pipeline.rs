@@ -45,7 +45,7 @@ pub struct PipelineKey {
 }
 
 /// Descriptor types of bindings 0.. of group 0, in the shader's order.
-pub const BINDINGS: [vk::DescriptorType; 10] = [
+pub const BINDINGS: [vk::DescriptorType; 12] = [
     vk::DescriptorType::UNIFORM_BUFFER, // frame
     vk::DescriptorType::UNIFORM_BUFFER, // tile
     vk::DescriptorType::STORAGE_BUFFER, // spheres
@@ -56,6 +56,8 @@ pub const BINDINGS: [vk::DescriptorType; 10] = [
     vk::DescriptorType::STORAGE_BUFFER, // prim_refs
     vk::DescriptorType::STORAGE_BUFFER, // output
     vk::DescriptorType::STORAGE_BUFFER, // velocities
+    vk::DescriptorType::STORAGE_BUFFER, // pixel state
+    vk::DescriptorType::STORAGE_BUFFER, // status
 ];
 
 pub struct TracePipeline {

@@ -1,12 +1,23 @@
-//! Rendering a packed scene on the GPU, tile by tile.
+//! Rendering a packed scene on the GPU, tile by tile and pass by pass.
 //!
-//! Each tile is one submit with its own fence, so no single submission runs
-//! long enough to trip a driver watchdog and the host can report progress.
-//! Two tile slots alternate: while the GPU renders one tile, the host reads
-//! the previous one back. A tile is dispatched into a device-local buffer and
+//! A tile's work is split into passes of bounded size (the shader's
+//! `render_tile` runs each pixel's work as a resumable state machine with a
+//! budget of loop iterations per pass), so no invocation runs into a driver's
+//! loop limit and no submission runs long enough to trip a watchdog, whatever
+//! the scene asks for. Each pass is one submit with its own fence; after it the
+//! host reads the pass's status: pixels left (another pass), or pixels cut
+//! short (the tile is redone with a smaller budget, or the render fails naming
+//! the pixel). Two tile slots alternate, so the GPU works on one while the host
+//! reads the other back. A tile is dispatched into a device-local buffer and
 //! copied into a host-visible one, so shaders never write across PCIe.
+//!
+//! Everything a render needs on the device (command buffers, descriptor sets,
+//! fences, scene, tile and staging buffers) is created once per renderer and
+//! reused by every tile, pass and frame; a buffer is recreated only when a
+//! scene needs a larger one, so memory stays flat over an animation.
 
-use std::sync::Arc;
+use std::collections::VecDeque;
+use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
 use ash::vk;
@@ -19,7 +30,10 @@ use super::pipeline::{Kernel, PipelineKey, TracePipeline, BINDINGS};
 use crate::camera::Camera;
 use crate::framebuffer::Framebuffer;
 use crate::info::Features;
-use crate::layout::{padded, GpuScene, GpuTile, PATH_HEADER, PATH_PER_LIGHT, WORKGROUP_SIZE};
+use crate::layout::{
+    padded, GpuPixelState, GpuScene, GpuStatus, GpuTile, PATH_HEADER, PATH_PER_LIGHT,
+    WORKGROUP_SIZE,
+};
 use crate::methods::Methods;
 use crate::probe::{PathRecord, ProbeImage};
 use crate::scene::Effects;
@@ -37,13 +51,32 @@ fn key(options: &GpuRenderOptions, kernel: Kernel) -> PipelineKey {
 const SLOTS: usize = 2;
 /// Output texels are `vec4<f32>`.
 const TEXEL_BYTES: u64 = 16;
+/// Binding indices (the shader's header lists them).
+const B_FRAME: usize = 0;
+const B_TILE: usize = 1;
+const B_OUTPUT: usize = 8;
+const B_STATE: usize = 10;
+const B_STATUS: usize = 11;
+/// A cut tile is redone with its budget divided by this.
+const BUDGET_BACKOFF: u32 = 8;
+
+/// The default loop iterations per invocation per pass. llvmpipe ends every
+/// loop of an invocation once it has run 65535 iterations of all its loops
+/// together (counted per 8-lane vector, so divergent lanes can add up to 8
+/// times one lane's count); 2048 per lane plus one traversal stays below that
+/// in the worst case. Measured on lavapipe: SIGGRAPH needs one pass at
+/// 640x480, and passes add under 3% where one would do.
+pub const DEFAULT_PASS_BUDGET: u32 = 2048;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GpuRenderOptions {
-    /// Tile edge in pixels; bounds the work in one submit.
+    /// Tile edge in pixels; bounds the pixels in one submit.
     pub tile_size: u32,
-    /// Longest wait for one tile before giving up with an error.
-    pub tile_timeout: Duration,
+    /// Loop iterations one shader invocation may run per pass; bounds the
+    /// work per pixel in one submit.
+    pub pass_budget: u32,
+    /// Longest wait for one pass before giving up with an error.
+    pub pass_timeout: Duration,
     /// Intersection and offset methods (robust unless measuring them).
     pub methods: Methods,
     /// Sample counts, reflection depth, shutter and seed.
@@ -51,6 +84,9 @@ pub struct GpuRenderOptions {
     /// What the shader is specialised for: `Features::of` the scene, or
     /// `Features::ALL` for the generic shader.
     pub features: Features,
+    /// A cap on every storage binding below the device's own
+    /// `maxStorageBufferRange` (tests use it to reach the limit cheaply).
+    pub storage_limit: Option<u64>,
 }
 
 impl Default for GpuRenderOptions {
@@ -62,10 +98,15 @@ impl Default for GpuRenderOptions {
             // 512^2 = 262k invocations also comes closer to filling a large
             // GPU than 256^2 while keeping each submit short.
             tile_size: 512,
-            tile_timeout: Duration::from_secs(60),
+            pass_budget: DEFAULT_PASS_BUDGET,
+            // A pass is bounded (pass_budget x tile pixels): on lavapipe,
+            // 2 cores, a full-budget 512^2 pass takes about 10 s, so 120 s
+            // leaves room for a machine that is busy with other work.
+            pass_timeout: Duration::from_secs(120),
             methods: Methods::Robust,
             effects: Effects::default(),
             features: Features::ALL,
+            storage_limit: None,
         }
     }
 }
@@ -86,6 +127,8 @@ enum Job {
 pub struct GpuRenderer {
     ctx: Context,
     pipeline: TracePipeline,
+    /// Reused by every render; `None` until the first.
+    resources: Mutex<Option<Resources>>,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -94,7 +137,16 @@ struct TileRect {
     size: [u32; 2],
 }
 
-/// Per-render Vulkan objects that are not buffers, destroyed on drop.
+/// A tile's progress through its passes.
+#[derive(Clone, Copy, Debug)]
+struct TileWork {
+    rect: TileRect,
+    /// Passes submitted so far (the one in flight included).
+    pass: u32,
+    budget: u32,
+}
+
+/// The Vulkan objects of a renderer that are not buffers, destroyed on drop.
 struct Pools {
     shared: Arc<Shared>,
     command_pool: vk::CommandPool,
@@ -111,6 +163,7 @@ impl Drop for Pools {
         // SAFETY: every fence was waited on (or never submitted) before drop;
         // destroying the pools frees their command buffers and sets.
         unsafe {
+            let _ = device.device_wait_idle();
             for &f in &self.fences {
                 device.destroy_fence(f, None);
             }
@@ -120,13 +173,74 @@ impl Drop for Pools {
     }
 }
 
+/// A buffer that is reused while it is large enough.
+struct Reusable {
+    name: String,
+    usage: vk::BufferUsageFlags,
+    location: MemoryLocation,
+    buffer: Option<Buffer>,
+}
+
+impl Reusable {
+    fn new(name: &str, usage: vk::BufferUsageFlags, location: MemoryLocation) -> Reusable {
+        Reusable {
+            name: name.to_string(),
+            usage,
+            location,
+            buffer: None,
+        }
+    }
+
+    /// The buffer, recreated first when it holds fewer than `size` bytes.
+    fn at_least(&mut self, shared: &Arc<Shared>, size: u64) -> Result<&mut Buffer, GpuError> {
+        let size = size.max(16);
+        if self.buffer.as_ref().is_none_or(|b| b.size < size) {
+            self.buffer = None; // free before allocating the larger one
+            self.buffer = Some(Buffer::new(
+                shared,
+                &self.name,
+                size,
+                self.usage,
+                self.location,
+            )?);
+        }
+        Ok(self.buffer.as_mut().expect("just ensured"))
+    }
+
+    fn get(&self) -> &Buffer {
+        self.buffer.as_ref().expect("allocated before use")
+    }
+}
+
 struct Slot {
     tile: Buffer,
-    output: Buffer,
-    readback: Buffer,
+    status: Buffer,
+    output: Reusable,
+    readback: Reusable,
+    state: Reusable,
     command: vk::CommandBuffer,
     fence: vk::Fence,
     set: vk::DescriptorSet,
+}
+
+/// Everything a render needs on the device, kept across renders.
+struct Resources {
+    // Buffers and sets before pools: drop order frees buffers first.
+    slots: Vec<Slot>,
+    /// Device-local scene buffers by binding (frame and scene lists).
+    scene: Vec<(usize, Reusable)>,
+    staging: Reusable,
+    upload_command: vk::CommandBuffer,
+    upload_fence: vk::Fence,
+    /// Held for its drop: frees the command buffers, sets and fences.
+    _pools: Pools,
+}
+
+/// One binding's contents for a render.
+struct Upload<'a> {
+    binding: usize,
+    name: &'static str,
+    bytes: std::borrow::Cow<'a, [u8]>,
 }
 
 impl GpuRenderer {
@@ -135,6 +249,7 @@ impl GpuRenderer {
         Ok(GpuRenderer {
             ctx: ctx.clone(),
             pipeline,
+            resources: Mutex::new(None),
         })
     }
 
@@ -168,8 +283,27 @@ impl GpuRenderer {
         progress: &(dyn Fn(u64, u64) + Sync),
     ) -> Result<(Framebuffer, Timings), GpuError> {
         let job = Job::Image(Kernel::Render);
-        let (texels, timings) = self.run(scene, camera, background, options, job, progress)?;
-        let pixels = texels.iter().map(|t| [t[0], t[1], t[2]]).collect();
+        let width = camera.width as usize;
+        let mut pixels = vec![[0.0f32; 3]; width * camera.height as usize];
+        let timings = self.run(
+            scene,
+            camera,
+            background,
+            options,
+            job,
+            progress,
+            &mut |rect, texels| {
+                let [x0, y0] = rect.origin;
+                let [w, h] = rect.size;
+                for row in 0..h as usize {
+                    let src = &texels[row * w as usize..(row + 1) * w as usize];
+                    let start = (y0 as usize + row) * width + x0 as usize;
+                    for (dst, t) in pixels[start..start + w as usize].iter_mut().zip(src) {
+                        *dst = [t[0], t[1], t[2]];
+                    }
+                }
+            },
+        )?;
         let fb = Framebuffer {
             width: camera.width,
             height: camera.height,
@@ -186,12 +320,26 @@ impl GpuRenderer {
         options: &GpuRenderOptions,
     ) -> Result<ProbeImage, GpuError> {
         let job = Job::Image(Kernel::ProbeTile);
-        let (texels, _) = self.run(scene, camera, [0.0; 3], options, job, &|_, _| {})?;
-        Ok(ProbeImage::from_texels(
-            camera.width,
-            camera.height,
-            &texels,
-        ))
+        let width = camera.width as usize;
+        let mut image = vec![[0.0f32; 4]; width * camera.height as usize];
+        self.run(
+            scene,
+            camera,
+            [0.0; 3],
+            options,
+            job,
+            &|_, _| {},
+            &mut |rect, texels| {
+                let [x0, y0] = rect.origin;
+                let [w, h] = rect.size;
+                for row in 0..h as usize {
+                    let src = &texels[row * w as usize..(row + 1) * w as usize];
+                    let start = (y0 as usize + row) * width + x0 as usize;
+                    image[start..start + w as usize].copy_from_slice(src);
+                }
+            },
+        )?;
+        Ok(ProbeImage::from_texels(camera.width, camera.height, &image))
     }
 
     /// The path of pixel (x, y) (the shader's `probe_pixel`).
@@ -204,10 +352,83 @@ impl GpuRenderer {
         options: &GpuRenderOptions,
     ) -> Result<PathRecord, GpuError> {
         let job = Job::Pixel(pixel);
-        let (texels, _) = self.run(scene, camera, background, options, job, &|_, _| {})?;
-        Ok(PathRecord::from_texels(&texels))
+        let mut record = Vec::new();
+        self.run(
+            scene,
+            camera,
+            background,
+            options,
+            job,
+            &|_, _| {},
+            &mut |_, texels| record = texels.to_vec(),
+        )?;
+        Ok(PathRecord::from_texels(&record))
     }
 
+    /// The bytes each binding of a render would hold, checked against the
+    /// device's limits before anything is allocated.
+    fn check_limits(
+        &self,
+        uploads: &[Upload],
+        slot_bytes: &[(usize, u64)],
+        storage_limit: Option<u64>,
+    ) -> Result<(), GpuError> {
+        let mut limits = self.ctx.shared.limits;
+        if let Some(cap) = storage_limit {
+            limits.max_storage_range = limits.max_storage_range.min(cap);
+        }
+        let storage = BINDINGS
+            .iter()
+            .filter(|&&t| t == vk::DescriptorType::STORAGE_BUFFER)
+            .count() as u32;
+        if storage > limits.max_storage_buffers {
+            return Err(GpuError::Limit {
+                what: "storage buffers per shader stage".into(),
+                needed: u64::from(storage),
+                limit_name: "maxPerStageDescriptorStorageBuffers",
+                limit: u64::from(limits.max_storage_buffers),
+                hint: "use another device or --backend cpu".into(),
+            });
+        }
+        let sizes = uploads
+            .iter()
+            .map(|u| (u.binding, u.name, u.bytes.len() as u64))
+            .chain(slot_bytes.iter().map(|&(b, n)| (b, binding_name(b), n)));
+        for (binding, name, bytes) in sizes {
+            let uniform = BINDINGS[binding] == vk::DescriptorType::UNIFORM_BUFFER;
+            let (limit_name, limit) = if uniform {
+                ("maxUniformBufferRange", limits.max_uniform_range)
+            } else {
+                ("maxStorageBufferRange", limits.max_storage_range)
+            };
+            let hint = match binding {
+                B_OUTPUT | B_STATE => "use a smaller --tile".to_string(),
+                _ => "render fewer primitives or lights on this device, or use --backend cpu"
+                    .to_string(),
+            };
+            if bytes > limit {
+                return Err(GpuError::Limit {
+                    what: format!("the {name} buffer (binding {binding})"),
+                    needed: bytes,
+                    limit_name,
+                    limit,
+                    hint,
+                });
+            }
+            if bytes > limits.max_allocation {
+                return Err(GpuError::Limit {
+                    what: format!("the {name} buffer (binding {binding})"),
+                    needed: bytes,
+                    limit_name: "maxMemoryAllocationSize",
+                    limit: limits.max_allocation,
+                    hint,
+                });
+            }
+        }
+        Ok(())
+    }
+
+    #[allow(clippy::too_many_arguments)]
     fn run(
         &self,
         scene: &GpuScene,
@@ -216,9 +437,8 @@ impl GpuRenderer {
         options: &GpuRenderOptions,
         job: Job,
         progress: &(dyn Fn(u64, u64) + Sync),
-    ) -> Result<(Vec<[f32; 4]>, Timings), GpuError> {
-        let shared = &self.ctx.shared;
-        let device = &shared.device;
+        sink: &mut dyn FnMut(TileRect, &[[f32; 4]]),
+    ) -> Result<Timings, GpuError> {
         let mut timings = Timings::default();
         let tile_edge = options.tile_size.max(WORKGROUP_SIZE);
         let (kernel, tiles, out_texels) = match job {
@@ -240,69 +460,125 @@ impl GpuRenderer {
                 )
             }
         };
+        let state_bytes = match kernel {
+            Kernel::Render => out_texels * std::mem::size_of::<GpuPixelState>() as u64,
+            _ => std::mem::size_of::<GpuPixelState>() as u64,
+        };
+        let out_bytes = out_texels * TEXEL_BYTES;
+        let frame = scene.frame(camera, background, &options.effects, &options.features);
+        let uploads = [
+            upload(B_FRAME, "frame", bytemuck::bytes_of(&frame).into()),
+            upload(2, "spheres", padded(&scene.spheres)),
+            upload(3, "triangles", padded(&scene.triangles)),
+            upload(4, "shading", padded(&scene.shading)),
+            upload(5, "lights", padded(&scene.lights)),
+            upload(6, "bvh nodes", padded(&scene.nodes)),
+            upload(7, "primitive refs", padded(&scene.prim_refs)),
+            upload(9, "velocities", padded(&scene.velocities)),
+        ];
+        self.check_limits(
+            &uploads,
+            &[(B_OUTPUT, out_bytes), (B_STATE, state_bytes)],
+            options.storage_limit,
+        )?;
         let (pipeline, build_time) = self.pipeline.get(key(options, kernel))?;
         if !build_time.is_zero() {
             timings.add("pipeline", build_time);
         }
 
-        let mut pools = self.create_pools()?;
+        let mut guard = self.resources.lock().unwrap_or_else(|e| e.into_inner());
+        if guard.is_none() {
+            *guard = Some(self.create_resources()?);
+        }
+        let res = guard.as_mut().expect("just created");
         let upload_start = Instant::now();
-        let frame = scene.frame(camera, background, &options.effects, &options.features);
-        // (binding, name, contents) of everything uploaded once per render.
-        let scene_buffers = self.upload(
-            &pools,
-            &[
-                (0, "frame", bytemuck::bytes_of(&frame).into()),
-                (2, "spheres", padded(&scene.spheres)),
-                (3, "triangles", padded(&scene.triangles)),
-                (4, "shading", padded(&scene.shading)),
-                (5, "lights", padded(&scene.lights)),
-                (6, "bvh nodes", padded(&scene.nodes)),
-                (7, "primitive refs", padded(&scene.prim_refs)),
-                (9, "velocities", padded(&scene.velocities)),
-            ],
-        )?;
-        let tile_bytes = out_texels * TEXEL_BYTES;
-        let mut slots = Vec::with_capacity(SLOTS);
-        for i in 0..SLOTS {
-            slots.push(self.create_slot(&mut pools, i, tile_bytes, &scene_buffers)?);
+        self.upload(res, &uploads)?;
+        for slot in &mut res.slots {
+            self.bind_slot(slot, &res.scene, &uploads, out_bytes, state_bytes)?;
         }
         timings.add("upload", upload_start.elapsed());
 
-        let mut image = match job {
-            Job::Image(_) => vec![[0.0; 4]; camera.width as usize * camera.height as usize],
-            Job::Pixel(_) => vec![[0.0; 4]; out_texels as usize],
-        };
-        let mut in_flight: std::collections::VecDeque<(usize, TileRect)> = Default::default();
+        let mut in_flight: VecDeque<(usize, TileWork)> = VecDeque::new();
         let mut done = 0u64;
-        let mut dispatch = Duration::ZERO;
         let mut readback = Duration::ZERO;
+        let mut passes = 0u64;
+        let mut retries = 0u64;
         let dispatch_start = Instant::now();
-        for (i, &rect) in tiles.iter().enumerate() {
-            if in_flight.len() == SLOTS {
-                let (s, r) = in_flight.pop_front().expect("queue is full");
-                readback += self.finish_tile(&slots[s], r, job, &mut image, camera, options)?;
+        let mut next_tile = tiles.iter();
+        let mut free: Vec<usize> = (0..SLOTS).rev().collect();
+        loop {
+            // Fill every free slot with a new tile.
+            while let Some(&s) = free.last() {
+                let Some(&rect) = next_tile.next() else {
+                    break;
+                };
+                free.pop();
+                let work = TileWork {
+                    rect,
+                    pass: 1,
+                    budget: options.pass_budget.max(1),
+                };
+                self.submit_pass(&mut res.slots[s], pipeline, job, work, out_texels)?;
+                passes += 1;
+                in_flight.push_back((s, work));
+            }
+            let Some((s, mut work)) = in_flight.pop_front() else {
+                break;
+            };
+            let slot = &res.slots[s];
+            self.wait(slot, work, options)?;
+            let status: GpuStatus =
+                *bytemuck::from_bytes(&slot.status.mapped()[..std::mem::size_of::<GpuStatus>()]);
+            if status.cut > 0 {
+                let width = camera.width.max(1);
+                let [x, y] = [status.first_cut % width, status.first_cut / width];
+                if kernel != Kernel::Render || work.budget == 1 {
+                    return Err(GpuError::Incomplete {
+                        x,
+                        y,
+                        cut: status.cut,
+                        probe: kernel != Kernel::Render,
+                    });
+                }
+                // Redo the tile from its start with less work per pass: the
+                // passes are deterministic, so the image is the same.
+                work.budget = (work.budget / BUDGET_BACKOFF).max(1);
+                work.pass = 1;
+                retries += 1;
+            } else if status.remaining > 0 && kernel == Kernel::Render {
+                work.pass += 1;
+            } else {
+                let start = Instant::now();
+                let texels: &[[f32; 4]] = bytemuck::cast_slice(slot.readback.get().mapped());
+                let n = match job {
+                    Job::Image(_) => (work.rect.size[0] * work.rect.size[1]) as usize,
+                    Job::Pixel(_) => out_texels as usize,
+                };
+                sink(work.rect, &texels[..n]);
+                readback += start.elapsed();
                 done += 1;
                 progress(done, tiles.len() as u64);
+                free.push(s);
+                continue;
             }
-            let slot = &mut slots[i % SLOTS];
-            self.submit_tile(slot, pipeline, job, rect, out_texels)?;
-            in_flight.push_back((i % SLOTS, rect));
+            self.submit_pass(&mut res.slots[s], pipeline, job, work, out_texels)?;
+            passes += 1;
+            in_flight.push_back((s, work));
         }
-        while let Some((s, r)) = in_flight.pop_front() {
-            readback += self.finish_tile(&slots[s], r, job, &mut image, camera, options)?;
-            done += 1;
-            progress(done, tiles.len() as u64);
-        }
-        dispatch += dispatch_start.elapsed().saturating_sub(readback);
-        timings.add("dispatch", dispatch);
+        timings.add(
+            "dispatch",
+            dispatch_start.elapsed().saturating_sub(readback),
+        );
         timings.add("readback", readback);
-        // SAFETY: all submitted work was waited for above.
-        let _ = unsafe { device.device_wait_idle() };
-        Ok((image, timings))
+        timings.count("passes", passes);
+        if retries > 0 {
+            // Tiles redone with a smaller budget after a pass was cut short.
+            timings.count("retries", retries);
+        }
+        Ok(timings)
     }
 
-    fn create_pools(&self) -> Result<Pools, GpuError> {
+    fn create_resources(&self) -> Result<Resources, GpuError> {
         let shared = self.ctx.shared.clone();
         let device = &shared.device;
         let mut pools = Pools {
@@ -342,7 +618,40 @@ impl GpuRenderer {
                 )
                 .call("vkCreateDescriptorPool")?;
         }
-        Ok(pools)
+        let upload_command = self.command_buffer(&pools)?;
+        let upload_fence = self.fence(&mut pools)?;
+        let mut slots = Vec::with_capacity(SLOTS);
+        for i in 0..SLOTS {
+            slots.push(self.create_slot(&mut pools, i)?);
+        }
+        let scene = [
+            (B_FRAME, "frame"),
+            (2, "spheres"),
+            (3, "triangles"),
+            (4, "shading"),
+            (5, "lights"),
+            (6, "bvh nodes"),
+            (7, "primitive refs"),
+            (9, "velocities"),
+        ]
+        .into_iter()
+        .map(|(binding, name)| {
+            let usage = usage_for(BINDINGS[binding]) | vk::BufferUsageFlags::TRANSFER_DST;
+            (binding, Reusable::new(name, usage, MemoryLocation::GpuOnly))
+        })
+        .collect();
+        Ok(Resources {
+            slots,
+            scene,
+            staging: Reusable::new(
+                "staging",
+                vk::BufferUsageFlags::TRANSFER_SRC,
+                MemoryLocation::CpuToGpu,
+            ),
+            upload_command,
+            upload_fence,
+            _pools: pools,
+        })
     }
 
     fn command_buffer(&self, pools: &Pools) -> Result<vk::CommandBuffer, GpuError> {
@@ -370,94 +679,77 @@ impl GpuRenderer {
         Ok(fence)
     }
 
-    /// Copies each list into a new device-local buffer through one staging
-    /// buffer and one submit.
-    fn upload(
-        &self,
-        pools: &Pools,
-        items: &[(u32, &str, std::borrow::Cow<'_, [u8]>)],
-    ) -> Result<Vec<(u32, Buffer)>, GpuError> {
+    /// Copies each list into its device-local buffer through the staging
+    /// buffer, one list per submit so staging never exceeds the largest list.
+    fn upload(&self, res: &mut Resources, uploads: &[Upload]) -> Result<(), GpuError> {
         let shared = &self.ctx.shared;
         let device = &shared.device;
-        let total: u64 = items.iter().map(|(_, _, b)| b.len() as u64).sum();
-        let mut staging = Buffer::new(
-            shared,
-            "staging",
-            total,
-            vk::BufferUsageFlags::TRANSFER_SRC,
-            MemoryLocation::CpuToGpu,
-        )?;
-        let mut bytes = Vec::with_capacity(total as usize);
-        let mut buffers = Vec::with_capacity(items.len());
-        let mut regions = Vec::with_capacity(items.len());
-        for (binding, name, data) in items {
-            let size = data.len() as u64;
-            regions.push(vk::BufferCopy {
-                src_offset: bytes.len() as u64,
-                dst_offset: 0,
-                size,
-            });
-            bytes.extend_from_slice(data);
-            let usage = usage_for(BINDINGS[*binding as usize]);
-            buffers.push((
-                *binding,
-                Buffer::new(
-                    shared,
-                    name,
-                    size,
-                    usage | vk::BufferUsageFlags::TRANSFER_DST,
-                    MemoryLocation::GpuOnly,
-                )?,
-            ));
-        }
-        staging.write(&bytes);
-        let cmd = self.command_buffer(pools)?;
-        // SAFETY: recording into a fresh command buffer; every buffer lives
-        // until the wait below returns.
-        unsafe {
-            device
-                .begin_command_buffer(
+        for u in uploads {
+            let size = u.bytes.len() as u64;
+            let target = res
+                .scene
+                .iter_mut()
+                .find(|(b, _)| *b == u.binding)
+                .map(|(_, r)| r)
+                .expect("every upload has a scene buffer");
+            let dst = target.at_least(shared, size)?.raw;
+            let staging = res.staging.at_least(shared, size)?;
+            staging.write(&u.bytes);
+            let cmd = res.upload_command;
+            // SAFETY: the previous upload was waited for, so the command
+            // buffer, staging buffer and fence are free; every buffer lives
+            // until the wait below returns.
+            unsafe {
+                device
+                    .reset_command_buffer(cmd, vk::CommandBufferResetFlags::empty())
+                    .call("vkResetCommandBuffer")?;
+                device
+                    .begin_command_buffer(
+                        cmd,
+                        &vk::CommandBufferBeginInfo::default()
+                            .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
+                    )
+                    .call("vkBeginCommandBuffer")?;
+                device.cmd_copy_buffer(
                     cmd,
-                    &vk::CommandBufferBeginInfo::default()
-                        .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
-                )
-                .call("vkBeginCommandBuffer")?;
-            for ((_, buffer), region) in buffers.iter().zip(&regions) {
-                device.cmd_copy_buffer(cmd, staging.raw, buffer.raw, &[*region]);
+                    staging.raw,
+                    dst,
+                    &[vk::BufferCopy {
+                        src_offset: 0,
+                        dst_offset: 0,
+                        size,
+                    }],
+                );
+                let barrier = vk::MemoryBarrier::default()
+                    .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+                    .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::UNIFORM_READ);
+                device.cmd_pipeline_barrier(
+                    cmd,
+                    vk::PipelineStageFlags::TRANSFER,
+                    vk::PipelineStageFlags::COMPUTE_SHADER,
+                    vk::DependencyFlags::empty(),
+                    &[barrier],
+                    &[],
+                    &[],
+                );
+                device.end_command_buffer(cmd).call("vkEndCommandBuffer")?;
+                let cmds = [cmd];
+                let submit = vk::SubmitInfo::default().command_buffers(&cmds);
+                device
+                    .reset_fences(&[res.upload_fence])
+                    .call("vkResetFences")?;
+                device
+                    .queue_submit(shared.queue, &[submit], res.upload_fence)
+                    .call("vkQueueSubmit")?;
+                device
+                    .wait_for_fences(&[res.upload_fence], true, u64::MAX)
+                    .call("vkWaitForFences")?;
             }
-            let barrier = vk::MemoryBarrier::default()
-                .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-                .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::UNIFORM_READ);
-            device.cmd_pipeline_barrier(
-                cmd,
-                vk::PipelineStageFlags::TRANSFER,
-                vk::PipelineStageFlags::COMPUTE_SHADER,
-                vk::DependencyFlags::empty(),
-                &[barrier],
-                &[],
-                &[],
-            );
-            device.end_command_buffer(cmd).call("vkEndCommandBuffer")?;
-            let cmds = [cmd];
-            let submit = vk::SubmitInfo::default().command_buffers(&cmds);
-            device
-                .queue_submit(shared.queue, &[submit], vk::Fence::null())
-                .call("vkQueueSubmit")?;
-            device
-                .queue_wait_idle(shared.queue)
-                .call("vkQueueWaitIdle")?;
-            device.free_command_buffers(pools.command_pool, &cmds);
         }
-        Ok(buffers)
+        Ok(())
     }
 
-    fn create_slot(
-        &self,
-        pools: &mut Pools,
-        index: usize,
-        tile_bytes: u64,
-        scene: &[(u32, Buffer)],
-    ) -> Result<Slot, GpuError> {
+    fn create_slot(&self, pools: &mut Pools, index: usize) -> Result<Slot, GpuError> {
         let shared = &self.ctx.shared;
         let tile = Buffer::new(
             shared,
@@ -466,18 +758,12 @@ impl GpuRenderer {
             vk::BufferUsageFlags::UNIFORM_BUFFER,
             MemoryLocation::CpuToGpu,
         )?;
-        let output = Buffer::new(
+        // Read by the host after every pass; reset by the pass itself.
+        let status = Buffer::new(
             shared,
-            &format!("tile output {index}"),
-            tile_bytes,
-            vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_SRC,
-            MemoryLocation::GpuOnly,
-        )?;
-        let readback = Buffer::new(
-            shared,
-            &format!("tile readback {index}"),
-            tile_bytes,
-            vk::BufferUsageFlags::TRANSFER_DST,
+            &format!("status {index}"),
+            std::mem::size_of::<GpuStatus>() as u64,
+            vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST,
             MemoryLocation::GpuToCpu,
         )?;
         let set_layouts = [self.pipeline.set_layout];
@@ -490,58 +776,108 @@ impl GpuRenderer {
             )
         }
         .call("vkAllocateDescriptorSets")?[0];
-        let mut bound: Vec<(u32, &Buffer)> = scene.iter().map(|(b, buf)| (*b, buf)).collect();
-        bound.push((1, &tile));
-        bound.push((8, &output));
-        bound.sort_by_key(|(b, _)| *b);
-        debug_assert!(bound.iter().map(|(b, _)| *b as usize).eq(0..BINDINGS.len()));
-        let infos: Vec<[vk::DescriptorBufferInfo; 1]> = bound
-            .iter()
-            .map(|(_, b)| {
-                [vk::DescriptorBufferInfo::default()
-                    .buffer(b.raw)
-                    .range(vk::WHOLE_SIZE)]
-            })
-            .collect();
-        let writes: Vec<vk::WriteDescriptorSet> = bound
-            .iter()
-            .zip(&infos)
-            .map(|((binding, _), info)| {
-                vk::WriteDescriptorSet::default()
-                    .dst_set(set)
-                    .dst_binding(*binding)
-                    .descriptor_type(BINDINGS[*binding as usize])
-                    .buffer_info(info)
-            })
-            .collect();
-        // SAFETY: every write names a live buffer of the right usage.
-        unsafe { shared.device.update_descriptor_sets(&writes, &[]) };
         let command = self.command_buffer(pools)?;
         let fence = self.fence(pools)?;
+        let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
         Ok(Slot {
             tile,
-            output,
-            readback,
+            status,
+            output: Reusable::new(
+                &format!("tile output {index}"),
+                storage | vk::BufferUsageFlags::TRANSFER_SRC,
+                MemoryLocation::GpuOnly,
+            ),
+            readback: Reusable::new(
+                &format!("tile readback {index}"),
+                vk::BufferUsageFlags::TRANSFER_DST,
+                MemoryLocation::GpuToCpu,
+            ),
+            state: Reusable::new(
+                &format!("pixel state {index}"),
+                storage,
+                MemoryLocation::GpuOnly,
+            ),
             command,
             fence,
             set,
         })
     }
 
-    fn submit_tile(
+    /// Points the slot's descriptor set at this render's buffers, each bound
+    /// with exactly its contents' size (the shader's `arrayLength` sees it).
+    fn bind_slot(
+        &self,
+        slot: &mut Slot,
+        scene: &[(usize, Reusable)],
+        uploads: &[Upload],
+        out_bytes: u64,
+        state_bytes: u64,
+    ) -> Result<(), GpuError> {
+        let shared = &self.ctx.shared;
+        slot.output.at_least(shared, out_bytes)?;
+        slot.readback.at_least(shared, out_bytes)?;
+        slot.state.at_least(shared, state_bytes)?;
+        let mut bound: Vec<(usize, vk::Buffer, u64)> = uploads
+            .iter()
+            .map(|u| {
+                let buffer = scene
+                    .iter()
+                    .find(|(b, _)| *b == u.binding)
+                    .map(|(_, r)| r.get().raw)
+                    .expect("uploaded");
+                (u.binding, buffer, u.bytes.len() as u64)
+            })
+            .collect();
+        bound.push((B_TILE, slot.tile.raw, slot.tile.size));
+        bound.push((B_OUTPUT, slot.output.get().raw, out_bytes));
+        bound.push((B_STATE, slot.state.get().raw, state_bytes));
+        bound.push((B_STATUS, slot.status.raw, slot.status.size));
+        bound.sort_by_key(|(b, _, _)| *b);
+        debug_assert!(bound.iter().map(|(b, _, _)| *b).eq(0..BINDINGS.len()));
+        let infos: Vec<[vk::DescriptorBufferInfo; 1]> = bound
+            .iter()
+            .map(|&(_, buffer, range)| {
+                [vk::DescriptorBufferInfo::default()
+                    .buffer(buffer)
+                    .range(range)]
+            })
+            .collect();
+        let writes: Vec<vk::WriteDescriptorSet> = bound
+            .iter()
+            .zip(&infos)
+            .map(|((binding, _, _), info)| {
+                vk::WriteDescriptorSet::default()
+                    .dst_set(slot.set)
+                    .dst_binding(*binding as u32)
+                    .descriptor_type(BINDINGS[*binding])
+                    .buffer_info(info)
+            })
+            .collect();
+        // SAFETY: every write names a live buffer of the right usage, and no
+        // submission using the set is pending (all were waited for).
+        unsafe { shared.device.update_descriptor_sets(&writes, &[]) };
+        Ok(())
+    }
+
+    fn submit_pass(
         &self,
         slot: &mut Slot,
         pipeline: vk::Pipeline,
         job: Job,
-        rect: TileRect,
+        work: TileWork,
         out_texels: u64,
     ) -> Result<(), GpuError> {
         let shared = &self.ctx.shared;
         let device = &shared.device;
-        slot.tile.write(bytemuck::bytes_of(&GpuTile {
+        let rect = work.rect;
+        let tile = GpuTile {
             origin: rect.origin,
             size: rect.size,
-        }));
+            budget: work.budget,
+            first: u32::from(work.pass == 1),
+            _pad: [0; 2],
+        };
+        slot.tile.write(bytemuck::bytes_of(&tile));
         let (groups, texels) = match job {
             Job::Image(_) => (
                 [
@@ -552,9 +888,21 @@ impl GpuRenderer {
             ),
             Job::Pixel(_) => ([1, 1], out_texels),
         };
+        let max = shared.limits.max_group_count;
+        if groups[0] > max[0] || groups[1] > max[1] {
+            return Err(GpuError::Limit {
+                what: "workgroups per dispatch".into(),
+                needed: u64::from(groups[0].max(groups[1])),
+                limit_name: "maxComputeWorkGroupCount",
+                limit: u64::from(max[0].min(max[1])),
+                hint: "use a smaller --tile".into(),
+            });
+        }
+        let reset = GpuStatus::RESET;
+        let words: [u32; 4] = bytemuck::cast(reset);
         let bytes = texels * TEXEL_BYTES;
-        // SAFETY: the slot's previous submission was waited for (finish_tile)
-        // before this reuse; all handles are live.
+        // SAFETY: the slot's previous submission was waited for before this
+        // reuse; all handles are live.
         unsafe {
             device.reset_fences(&[slot.fence]).call("vkResetFences")?;
             device
@@ -567,6 +915,22 @@ impl GpuRenderer {
                         .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
                 )
                 .call("vkBeginCommandBuffer")?;
+            // The status starts each pass at RESET: the counters at 0 and
+            // first_cut at u32::MAX (fills of disjoint ranges).
+            device.cmd_fill_buffer(slot.command, slot.status.raw, 0, 8, words[0]);
+            device.cmd_fill_buffer(slot.command, slot.status.raw, 8, 4, words[2]);
+            let to_shader = vk::MemoryBarrier::default()
+                .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+                .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE);
+            device.cmd_pipeline_barrier(
+                slot.command,
+                vk::PipelineStageFlags::TRANSFER,
+                vk::PipelineStageFlags::COMPUTE_SHADER,
+                vk::DependencyFlags::empty(),
+                &[to_shader],
+                &[],
+                &[],
+            );
             device.cmd_bind_pipeline(slot.command, vk::PipelineBindPoint::COMPUTE, pipeline);
             device.cmd_bind_descriptor_sets(
                 slot.command,
@@ -579,11 +943,11 @@ impl GpuRenderer {
             device.cmd_dispatch(slot.command, groups[0], groups[1], 1);
             let to_copy = vk::MemoryBarrier::default()
                 .src_access_mask(vk::AccessFlags::SHADER_WRITE)
-                .dst_access_mask(vk::AccessFlags::TRANSFER_READ);
+                .dst_access_mask(vk::AccessFlags::TRANSFER_READ | vk::AccessFlags::HOST_READ);
             device.cmd_pipeline_barrier(
                 slot.command,
                 vk::PipelineStageFlags::COMPUTE_SHADER,
-                vk::PipelineStageFlags::TRANSFER,
+                vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::HOST,
                 vk::DependencyFlags::empty(),
                 &[to_copy],
                 &[],
@@ -591,8 +955,8 @@ impl GpuRenderer {
             );
             device.cmd_copy_buffer(
                 slot.command,
-                slot.output.raw,
-                slot.readback.raw,
+                slot.output.get().raw,
+                slot.readback.get().raw,
                 &[vk::BufferCopy {
                     src_offset: 0,
                     dst_offset: 0,
@@ -618,22 +982,19 @@ impl GpuRenderer {
             let submit = vk::SubmitInfo::default().command_buffers(&cmds);
             device
                 .queue_submit(shared.queue, &[submit], slot.fence)
-                .map_err(|r| self.fail(r, rect, "vkQueueSubmit", 0))?;
+                .map_err(|r| self.fail(r, work, "vkQueueSubmit", 0))?;
         }
         Ok(())
     }
 
-    /// Waits for a tile and copies it into `image`; returns the copy time.
-    fn finish_tile(
+    /// Waits for the slot's pass.
+    fn wait(
         &self,
         slot: &Slot,
-        rect: TileRect,
-        job: Job,
-        image: &mut [[f32; 4]],
-        camera: &Camera,
+        work: TileWork,
         options: &GpuRenderOptions,
-    ) -> Result<Duration, GpuError> {
-        let timeout = options.tile_timeout.as_nanos().min(u128::from(u64::MAX)) as u64;
+    ) -> Result<(), GpuError> {
+        let timeout = options.pass_timeout.as_nanos().min(u128::from(u64::MAX)) as u64;
         // SAFETY: the fence belongs to this device and was submitted.
         unsafe {
             self.ctx
@@ -641,35 +1002,27 @@ impl GpuRenderer {
                 .device
                 .wait_for_fences(&[slot.fence], true, timeout)
         }
-        .map_err(|r| self.fail(r, rect, "vkWaitForFences", options.tile_timeout.as_secs()))?;
-        let start = Instant::now();
-        let texels: &[[f32; 4]] = bytemuck::cast_slice(slot.readback.mapped());
-        if let Job::Pixel(_) = job {
-            image.copy_from_slice(&texels[..image.len()]);
-            return Ok(start.elapsed());
-        }
-        let [x0, y0] = rect.origin;
-        let [w, h] = rect.size;
-        for row in 0..h {
-            let src = &texels[(row * w) as usize..((row + 1) * w) as usize];
-            let start_px = ((y0 + row) * camera.width + x0) as usize;
-            image[start_px..start_px + w as usize].copy_from_slice(src);
-        }
-        Ok(start.elapsed())
+        .map_err(|r| self.fail(r, work, "vkWaitForFences", options.pass_timeout.as_secs()))
     }
 
     fn fail(
         &self,
         result: vk::Result,
-        rect: TileRect,
+        work: TileWork,
         call: &'static str,
         seconds: u64,
     ) -> GpuError {
-        let [x, y] = rect.origin;
+        let [x, y] = work.rect.origin;
         match result {
             vk::Result::TIMEOUT => {
                 self.ctx.shared.poison();
-                GpuError::Timeout { x, y, seconds }
+                GpuError::Timeout {
+                    x,
+                    y,
+                    pass: work.pass,
+                    budget: work.budget,
+                    seconds,
+                }
             }
             vk::Result::ERROR_DEVICE_LOST => {
                 self.ctx.shared.poison();
@@ -677,6 +1030,22 @@ impl GpuRenderer {
             }
             result => GpuError::Vk { call, result },
         }
+    }
+}
+
+fn upload<'a>(binding: usize, name: &'static str, bytes: std::borrow::Cow<'a, [u8]>) -> Upload<'a> {
+    Upload {
+        binding,
+        name,
+        bytes,
+    }
+}
+
+fn binding_name(binding: usize) -> &'static str {
+    match binding {
+        B_OUTPUT => "tile output",
+        B_STATE => "pixel state",
+        _ => "buffer",
     }
 }
 

@@ -261,7 +261,7 @@ mod tests {
         for gone in [
             "area_term",
             "light_sample_point",
-            "reflect_path",
+            "reflect_off",
             "stratified_2d",
             "hit_sphere_naive",
             "hit_triangle_naive",
@@ -273,7 +273,7 @@ mod tests {
         for kept in [
             "area_term",
             "light_sample_point",
-            "reflect_path",
+            "reflect_off",
             "stratified_2d",
         ] {
             assert!(names.iter().any(|n| n == kept), "{kept} missing: {names:?}");

@@ -96,9 +96,15 @@ pub struct Scene {
     /// Render settings the file asks for (extensions; classic files have none).
     pub settings: Settings,
     /// Questionable but renderable input (e.g. a zero-length normal), with
-    /// its location, for the CLI to print.
+    /// its location, for the CLI to print: the first `WARNINGS_KEPT` of each
+    /// kind.
     pub warnings: Vec<Diagnostic>,
+    /// Warnings past the first few of their kind: counted, not kept.
+    pub more_warnings: usize,
 }
+
+/// Warnings of one kind kept with their location; the rest are counted.
+pub const WARNINGS_KEPT: usize = 5;
 
 /// Axis-aligned bounds of a set of points, in f64.
 #[derive(Clone, Copy, Debug, PartialEq)]

@@ -46,7 +46,9 @@ pub struct Diagnostic {
     pub message: String,
     /// What to do about it, when there is something useful to say.
     pub hint: Option<String>,
+    /// The part of the line shown, and where the caret goes in it.
     source_line: String,
+    caret_col: usize,
     width: usize,
 }
 
@@ -64,7 +66,7 @@ impl fmt::Display for Diagnostic {
             f,
             "{:gutter$} | {}{}",
             "",
-            " ".repeat(self.col.saturating_sub(1)),
+            " ".repeat(self.caret_col.saturating_sub(1)),
             "^".repeat(self.width.max(1))
         )?;
         if let Some(hint) = &self.hint {
@@ -247,7 +249,7 @@ impl<'a> Parser<'a> {
                         .to_string(),
                     Some("where all three are zero the flat (geometric) normal is used"),
                 );
-                self.scene.warnings.push(d);
+                self.warn(d);
             } else if (v.normal.length() - 1.0).abs() > NORMAL_LENGTH_TOLERANCE
                 || !v.normal.length().is_finite()
             {
@@ -261,7 +263,7 @@ impl<'a> Parser<'a> {
                     ),
                     Some("write unit normals to silence this warning"),
                 );
-                self.scene.warnings.push(d);
+                self.warn(d);
                 // Scaled first so that even 1e300 has a finite length.
                 v.normal = (v.normal / v.normal.abs().max_element()).normalize();
             }
@@ -473,6 +475,23 @@ impl<'a> Parser<'a> {
         self.error_at(tok, format!("expected {what}, found {}", tok.show()), None)
     }
 
+    /// Keeps the first few warnings of each kind (told apart by their hint)
+    /// and counts the rest, so a file that repeats one mistake a million
+    /// times costs a counter, not a million diagnostics.
+    fn warn(&mut self, d: Diagnostic) {
+        let same = self
+            .scene
+            .warnings
+            .iter()
+            .filter(|w| w.hint == d.hint)
+            .count();
+        if same < super::WARNINGS_KEPT {
+            self.scene.warnings.push(d);
+        } else {
+            self.scene.more_warnings += 1;
+        }
+    }
+
     fn error_at(&self, tok: &Token<'_>, message: String, hint: Option<&str>) -> ParseError {
         ParseError(Box::new(self.diagnostic(tok, message, hint)))
     }
@@ -484,10 +503,29 @@ impl<'a> Parser<'a> {
             .iter()
             .position(|&b| b == b'\n')
             .map_or(self.src.len(), |i| tok.offset + i);
+        // Line breaks are optional in this format: a whole scene can be one
+        // line. Show a window of the line around the token, so a diagnostic
+        // costs the same whatever the line's length.
+        let token_end = (tok.offset + tok.text.len()).min(line_end);
+        let mut from = tok.offset.saturating_sub(SOURCE_WINDOW).max(line_start);
+        let mut to = (token_end + SOURCE_WINDOW).min(line_end);
+        // Whole UTF-8 characters only.
+        while from > line_start && (self.src[from] & 0xC0) == 0x80 {
+            from -= 1;
+        }
+        while to < line_end && (self.src[to] & 0xC0) == 0x80 {
+            to += 1;
+        }
+        let lead = if from > line_start { "..." } else { "" };
+        let tail = if to < line_end { "..." } else { "" };
         // Tabs shown as one space keep the caret under the token.
-        let source_line = String::from_utf8_lossy(&self.src[line_start..line_end])
-            .trim_end()
-            .replace('\t', " ");
+        let source_line = format!(
+            "{lead}{}{tail}",
+            String::from_utf8_lossy(&self.src[from..to])
+                .trim_end()
+                .replace('\t', " ")
+        );
+        let width = chars(&self.src[tok.offset..token_end]);
         Diagnostic {
             path: self.path.to_string(),
             line: tok.line,
@@ -495,10 +533,14 @@ impl<'a> Parser<'a> {
             message,
             hint: hint.map(str::to_string),
             source_line,
-            width: chars(tok.text),
+            caret_col: lead.len() + chars(&self.src[from..tok.offset]) + 1,
+            width: width.min(2 * SOURCE_WINDOW),
         }
     }
 }
+
+/// Bytes of the source line shown on each side of a diagnostic's token.
+const SOURCE_WINDOW: usize = 60;
 
 #[cfg(test)]
 mod tests {

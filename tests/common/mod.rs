@@ -98,7 +98,16 @@ pub fn gpu() -> Option<&'static Mutex<Gpu>> {
             device: None,
             validation: true,
         };
-        match Context::new(&options) {
+        let created = match Context::new(&options) {
+            Err(glint::gpu::GpuError::NoValidationLayer) if !in_ci() => {
+                Context::new(&ContextOptions {
+                    validation: false,
+                    ..options
+                })
+            }
+            other => other,
+        };
+        match created {
             Ok(ctx) => {
                 assert!(
                     ctx.validation_active() || !in_ci(),
