@@ -178,7 +178,8 @@ fn passes_do_not_change_the_image() {
 
 /// A budget too large for the driver is caught, not rendered short: the
 /// cut pass is detected and the tile redone with less work per pass. On
-/// Mesa's llvmpipe the loop limit is real, so the retry must happen there.
+/// Mesa 22's llvmpipe the loop limit is real (65535 iterations an
+/// invocation), so the retry must happen there; Mesa 25 has no such limit.
 #[test]
 fn a_cut_pass_is_detected_and_redone() {
     let Some(scene) = classic_scene("test2") else {
@@ -195,7 +196,7 @@ fn a_cut_pass_is_detected_and_redone() {
     let (gpu, timings) = result.expect("render succeeds after retries");
     let driver = gpu_driver();
     eprintln!("{driver}: {} retries", timings.counted("retries"));
-    if driver.contains("llvmpipe") {
+    if driver.contains("Mesa 22.") {
         assert!(
             timings.counted("retries") > 0,
             "llvmpipe's loop limit went unseen"
@@ -255,20 +256,22 @@ fn memory_stays_flat_over_many_frames() {
         render_passes(&scene, 48, 40, |o| o.tile_size = 8)
             .map(|r| r.unwrap_or_else(|e| panic!("frame {i}: {e}")))
     };
-    for i in 0..20 {
+    // The allocator and the driver settle over the first frames; a leak
+    // of the old kind (~650 KB a frame) would add ~190 MB after them.
+    for i in 0..100 {
         if frame(i).is_none() {
             return;
         }
     }
     let settled = rss_bytes().expect("statm");
-    for i in 20..300 {
+    for i in 100..400 {
         frame(i);
     }
     let grown = rss_bytes().expect("statm").saturating_sub(settled);
-    eprintln!("RSS grew {} KB over 280 frames of 30 tiles", grown / 1024);
+    eprintln!("RSS grew {} KB over 300 frames of 30 tiles", grown / 1024);
     assert!(
-        grown < 8 << 20,
-        "RSS grew {} KB over 280 frames",
+        grown < 16 << 20,
+        "RSS grew {} KB over 300 frames",
         grown / 1024
     );
 }
