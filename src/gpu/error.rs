@@ -57,14 +57,16 @@ pub enum GpuError {
         probe: bool,
     },
     #[error(
-        "{what} needs {needed} but this device allows {limit} ({limit_name}); nothing was \
-         rendered: {hint}"
+        "{what} needs {needed}{unit} but this device allows {limit}{unit} ({limit_name}); \
+         nothing was rendered: {hint}"
     )]
     Limit {
         what: String,
         needed: u64,
         limit_name: &'static str,
         limit: u64,
+        /// " bytes", or "" for counts.
+        unit: &'static str,
         hint: String,
     },
     #[error(

@@ -387,6 +387,7 @@ impl GpuRenderer {
                 needed: u64::from(storage),
                 limit_name: "maxPerStageDescriptorStorageBuffers",
                 limit: u64::from(limits.max_storage_buffers),
+                unit: "",
                 hint: "use another device or --backend cpu".into(),
             });
         }
@@ -412,6 +413,7 @@ impl GpuRenderer {
                     needed: bytes,
                     limit_name,
                     limit,
+                    unit: " bytes",
                     hint,
                 });
             }
@@ -421,6 +423,7 @@ impl GpuRenderer {
                     needed: bytes,
                     limit_name: "maxMemoryAllocationSize",
                     limit: limits.max_allocation,
+                    unit: " bytes",
                     hint,
                 });
             }
@@ -895,6 +898,7 @@ impl GpuRenderer {
                 needed: u64::from(groups[0].max(groups[1])),
                 limit_name: "maxComputeWorkGroupCount",
                 limit: u64::from(max[0].min(max[1])),
+                unit: "",
                 hint: "use a smaller --tile".into(),
             });
         }
