@@ -293,15 +293,7 @@ impl GpuRenderer {
             job,
             progress,
             &mut |rect, texels| {
-                let [x0, y0] = rect.origin;
-                let [w, h] = rect.size;
-                for row in 0..h as usize {
-                    let src = &texels[row * w as usize..(row + 1) * w as usize];
-                    let start = (y0 as usize + row) * width + x0 as usize;
-                    for (dst, t) in pixels[start..start + w as usize].iter_mut().zip(src) {
-                        *dst = [t[0], t[1], t[2]];
-                    }
-                }
+                place_tile(rect, texels, width, &mut pixels, |t| [t[0], t[1], t[2]])
             },
         )?;
         let fb = Framebuffer {
@@ -329,15 +321,7 @@ impl GpuRenderer {
             options,
             job,
             &|_, _| {},
-            &mut |rect, texels| {
-                let [x0, y0] = rect.origin;
-                let [w, h] = rect.size;
-                for row in 0..h as usize {
-                    let src = &texels[row * w as usize..(row + 1) * w as usize];
-                    let start = (y0 as usize + row) * width + x0 as usize;
-                    image[start..start + w as usize].copy_from_slice(src);
-                }
-            },
+            &mut |rect, texels| place_tile(rect, texels, width, &mut image, |t| *t),
         )?;
         Ok(ProbeImage::from_texels(camera.width, camera.height, &image))
     }
@@ -1033,6 +1017,25 @@ impl GpuRenderer {
                 GpuError::DeviceLost { x, y }
             }
             result => GpuError::Vk { call, result },
+        }
+    }
+}
+
+/// Copies a tile's texels (row-major, `rect.size[0]` wide) into their place
+/// in an image `width` pixels wide, converting each with `f`.
+fn place_tile<T>(
+    rect: TileRect,
+    texels: &[[f32; 4]],
+    width: usize,
+    image: &mut [T],
+    f: impl Fn(&[f32; 4]) -> T,
+) {
+    let [x0, y0] = rect.origin.map(|v| v as usize);
+    let w = rect.size[0] as usize;
+    for (row, src) in texels.chunks_exact(w).enumerate() {
+        let start = (y0 + row) * width + x0;
+        for (dst, t) in image[start..start + w].iter_mut().zip(src) {
+            *dst = f(t);
         }
     }
 }
