@@ -5,8 +5,8 @@
 //   0  uniform            Frame          per-image constants
 //   1  uniform            Tile           the tile this dispatch renders
 //   2  storage, read      array<Sphere>
-//   3  storage, read      array<Triangle>          positions only
-//   4  storage, read      array<VertexShading>     3 per triangle
+//   3  storage, read      array<Triangle>          positions (w: material index bits)
+//   4  storage, read      array<TriangleNormals>   the 3 vertex normals of each triangle
 //   5  storage, read      array<Light>
 //   6  storage, read      array<BvhNode>           depth-first, see src/bvh.rs
 //   7  storage, read      array<u32>               primitive refs (bit 31: sphere)
@@ -14,6 +14,14 @@
 //   9  storage, read      array<vec4<f32>>         velocities: spheres, then triangles
 //  10  storage, rw        array<PixelState>        render_tile: each pixel's place in its work
 //  11  storage, rw        Status                   per pass: pixels unfinished, invocations cut
+//  12  storage, read      array<Material>          the distinct triangle-corner materials
+//  13.. storage, read     chunks 1-3 of triangles, normals, materials, nodes (SPLIT only)
+//
+// Split lists. A list larger than one binding may hold (maxStorageBufferRange)
+// is bound as up to SPLIT_CHUNKS consecutive ranges of 2^frame.chunk_shift[j]
+// elements each, and read through load_triangle, load_normals, load_material
+// and load_node. Only a shader built with SPLIT reads the extra chunks; every
+// other one reads binding 0 of each list directly.
 //
 // Bounded work. render_tile does not render a pixel in one go: it runs the
 // pixel's work (samples, bounces, one light term or one area-light sample at
@@ -59,6 +67,8 @@ struct Frame {
     reflect_depth: u32,
     // Seconds the shutter stays open (0 without motion blur).
     shutter: f32,
+    // log2 of the elements per chunk: triangles, normals, materials, nodes.
+    chunk_shift: vec4<u32>,
 }
 
 struct Tile {
@@ -124,13 +134,15 @@ struct Triangle {
     v: array<vec4<f32>, 3>,
 }
 
-struct VertexShading {
-    normal: vec3<f32>,
-    shininess: f32,
+struct TriangleNormals {
+    n: array<f32, 9>,
+}
+
+struct Material {
     kd: vec3<f32>,
-    _pad0: f32,
+    shininess: f32,
     ks: vec3<f32>,
-    _pad1: f32,
+    _pad: f32,
 }
 
 struct Light {
@@ -158,7 +170,7 @@ struct BvhNode {
 @group(0) @binding(1) var<uniform> tile: Tile;
 @group(0) @binding(2) var<storage, read> spheres: array<Sphere>;
 @group(0) @binding(3) var<storage, read> triangles: array<Triangle>;
-@group(0) @binding(4) var<storage, read> shading: array<VertexShading>;
+@group(0) @binding(4) var<storage, read> normals: array<TriangleNormals>;
 @group(0) @binding(5) var<storage, read> lights: array<Light>;
 @group(0) @binding(6) var<storage, read> nodes: array<BvhNode>;
 @group(0) @binding(7) var<storage, read> prim_refs: array<u32>;
@@ -166,6 +178,19 @@ struct BvhNode {
 @group(0) @binding(9) var<storage, read> velocities: array<vec4<f32>>;
 @group(0) @binding(10) var<storage, read_write> state: array<PixelState>;
 @group(0) @binding(11) var<storage, read_write> status: Status;
+@group(0) @binding(12) var<storage, read> materials: array<Material>;
+@group(0) @binding(13) var<storage, read> triangles1: array<Triangle>;
+@group(0) @binding(14) var<storage, read> triangles2: array<Triangle>;
+@group(0) @binding(15) var<storage, read> triangles3: array<Triangle>;
+@group(0) @binding(16) var<storage, read> normals1: array<TriangleNormals>;
+@group(0) @binding(17) var<storage, read> normals2: array<TriangleNormals>;
+@group(0) @binding(18) var<storage, read> normals3: array<TriangleNormals>;
+@group(0) @binding(19) var<storage, read> materials1: array<Material>;
+@group(0) @binding(20) var<storage, read> materials2: array<Material>;
+@group(0) @binding(21) var<storage, read> materials3: array<Material>;
+@group(0) @binding(22) var<storage, read> nodes1: array<BvhNode>;
+@group(0) @binding(23) var<storage, read> nodes2: array<BvhNode>;
+@group(0) @binding(24) var<storage, read> nodes3: array<BvhNode>;
 
 // Loop iterations this invocation has run (every loop counts, as drivers
 // count them), and whether any of its loops ended without its own exit.
@@ -224,6 +249,9 @@ override REFLECTION: bool = true;
 override AREA_LIGHTS: bool = true;
 override MOTION_BLUR: bool = true;
 override MULTISAMPLE: bool = true;
+// Big lists span several bindings (see "Split lists" above).
+override SPLIT: bool = false;
+const SPLIT_CHUNKS: u32 = 4u;
 const LIGHT_POINT: u32 = 0u;
 const LIGHT_SPHERE: u32 = 1u;
 const LIGHT_RECT: u32 = 2u;
@@ -507,13 +535,73 @@ fn sphere_at(index: u32, time: f32) -> Sphere {
     return s;
 }
 
+// The split-list readers: element `i` of a list, from the chunk that holds
+// it (a shader without SPLIT reads the first binding only).
+fn load_triangle(i: u32) -> Triangle {
+    if (SPLIT) {
+        let shift = frame.chunk_shift.x;
+        let j = i & ((1u << shift) - 1u);
+        switch (i >> shift) {
+            case 0u: { return triangles[j]; }
+            case 1u: { return triangles1[j]; }
+            case 2u: { return triangles2[j]; }
+            default: { return triangles3[j]; }
+        }
+    }
+    return triangles[i];
+}
+
+fn load_normals(i: u32) -> TriangleNormals {
+    if (SPLIT) {
+        let shift = frame.chunk_shift.y;
+        let j = i & ((1u << shift) - 1u);
+        switch (i >> shift) {
+            case 0u: { return normals[j]; }
+            case 1u: { return normals1[j]; }
+            case 2u: { return normals2[j]; }
+            default: { return normals3[j]; }
+        }
+    }
+    return normals[i];
+}
+
+fn load_material(i: u32) -> Material {
+    if (SPLIT) {
+        let shift = frame.chunk_shift.z;
+        let j = i & ((1u << shift) - 1u);
+        switch (i >> shift) {
+            case 0u: { return materials[j]; }
+            case 1u: { return materials1[j]; }
+            case 2u: { return materials2[j]; }
+            default: { return materials3[j]; }
+        }
+    }
+    return materials[i];
+}
+
+fn load_node(i: u32) -> BvhNode {
+    if (SPLIT) {
+        let shift = frame.chunk_shift.w;
+        let j = i & ((1u << shift) - 1u);
+        switch (i >> shift) {
+            case 0u: { return nodes[j]; }
+            case 1u: { return nodes1[j]; }
+            case 2u: { return nodes2[j]; }
+            default: { return nodes3[j]; }
+        }
+    }
+    return nodes[i];
+}
+
 fn triangle_at(index: u32, time: f32) -> Triangle {
-    var tri = triangles[index];
+    var tri = load_triangle(index);
     if (MOTION_BLUR) {
-        let shift = vec4(velocities[frame.sphere_count + index].xyz * time, 0.0);
-        tri.v[0] += shift;
-        tri.v[1] += shift;
-        tri.v[2] += shift;
+        // xyz only: w holds material index bits, which arithmetic could
+        // flush (they read as denormals).
+        let shift = velocities[frame.sphere_count + index].xyz * time;
+        tri.v[0] = vec4(tri.v[0].xyz + shift, tri.v[0].w);
+        tri.v[1] = vec4(tri.v[1].xyz + shift, tri.v[1].w);
+        tri.v[2] = vec4(tri.v[2].xyz + shift, tri.v[2].w);
     }
     return tri;
 }
@@ -565,7 +653,11 @@ fn hit_leaf(ray: Ray, node: BvhNode, best: ptr<function, Hit>, any_hit: bool) ->
 // `any_hit` the first hit found (shadow rays stop at the first blocker).
 fn traverse(ray: Ray, t_max: f32, any_hit: bool) -> Hit {
     var best = Hit(t_max, NO_HIT, 0.0, 0.0);
-    if (frame.node_count == 0u || hit_aabb(ray, nodes[0].min, nodes[0].max, t_max) == T_INF) {
+    if (frame.node_count == 0u) {
+        return best;
+    }
+    let root = load_node(0u);
+    if (hit_aabb(ray, root.min, root.max, t_max) == T_INF) {
         return best;
     }
     var stack: array<u32, BVH_MAX_DEPTH>;
@@ -579,7 +671,7 @@ fn traverse(ray: Ray, t_max: f32, any_hit: bool) -> Hit {
         }
         steps += 1u;
         work += 1u;
-        let node = nodes[index];
+        let node = load_node(index);
         if (node.count > 0u) {
             if (hit_leaf(ray, node, &best, any_hit)) {
                 return best;
@@ -594,8 +686,10 @@ fn traverse(ray: Ray, t_max: f32, any_hit: bool) -> Hit {
         }
         let left = index + 1u;
         let right = node.right_or_first;
-        let t_left = hit_aabb(ray, nodes[left].min, nodes[left].max, best.t);
-        let t_right = hit_aabb(ray, nodes[right].min, nodes[right].max, best.t);
+        let left_node = load_node(left);
+        let right_node = load_node(right);
+        let t_left = hit_aabb(ray, left_node.min, left_node.max, best.t);
+        let t_right = hit_aabb(ray, right_node.min, right_node.max, best.t);
         if (t_left == T_INF && t_right == T_INF) {
             if (sp == 0u) {
                 finished = true;
@@ -708,10 +802,14 @@ fn triangle_surface(ray: Ray, hit: Hit, index: u32) -> SurfacePoint {
         p = ray.origin + hit.t * ray.dir;
     }
     let ng = safe_normalize(cross(tri.v[1].xyz - tri.v[0].xyz, tri.v[2].xyz - tri.v[0].xyz), vec3(0.0, 0.0, 1.0));
-    let s0 = shading[3u * index];
-    let s1 = shading[3u * index + 1u];
-    let s2 = shading[3u * index + 2u];
-    let n = safe_normalize(w.x * s0.normal + w.y * s1.normal + w.z * s2.normal, ng);
+    let nn = load_normals(index).n;
+    let n0 = vec3(nn[0], nn[1], nn[2]);
+    let n1 = vec3(nn[3], nn[4], nn[5]);
+    let n2 = vec3(nn[6], nn[7], nn[8]);
+    let s0 = load_material(bitcast<u32>(tri.v[0].w));
+    let s1 = load_material(bitcast<u32>(tri.v[1].w));
+    let s2 = load_material(bitcast<u32>(tri.v[2].w));
+    let n = safe_normalize(w.x * n0 + w.y * n1 + w.z * n2, ng);
     let kd = w.x * s0.kd + w.y * s1.kd + w.z * s2.kd;
     let ks = w.x * s0.ks + w.y * s1.ks + w.z * s2.ks;
     let shininess = w.x * s0.shininess + w.y * s1.shininess + w.z * s2.shininess;

@@ -35,6 +35,17 @@ pub enum Error {
     },
     #[error("invalid option: {0}")]
     InvalidOption(String),
+    #[error(
+        "this render needs about {parts} of memory, but {} is available; nothing was rendered: \
+         render a smaller image (--width/--height), or free memory",
+        crate::memory::human(*available)
+    )]
+    OutOfMemory {
+        needed: u64,
+        available: u64,
+        /// The need, part by part (`MemoryNeed`'s display).
+        parts: String,
+    },
 }
 
 impl Error {

@@ -7,6 +7,8 @@
 //! cannot drift apart silently. Fields are grouped as `vec3 + scalar` so WGSL's
 //! 16-byte `vec3` alignment leaves no hidden padding.
 
+use std::collections::HashMap;
+
 use bytemuck::{Pod, Zeroable};
 
 use crate::bvh::Bvh;
@@ -50,6 +52,10 @@ pub struct GpuFrame {
     pub reflect_depth: u32,
     /// Seconds the shutter is open; 0 unless the scene calls for motion blur.
     pub shutter: f32,
+    /// log2 of the elements per binding of each split list (triangles,
+    /// normals, materials, BVH nodes; see `SPLIT_LISTS`); only a shader built
+    /// for split lists reads them.
+    pub chunk_shift: [u32; 4],
 }
 
 /// Per-dispatch constants (uniform, binding 1): the tile this dispatch
@@ -131,27 +137,49 @@ pub struct GpuSphere {
     pub _pad: f32,
 }
 
-/// Triangle positions only: what intersection reads. Shading attributes live
-/// in `GpuVertexShading`, read once per shaded hit, which keeps the hot data
-/// small (48 bytes a triangle).
+/// Triangle positions, what intersection reads (48 bytes a triangle). The w
+/// of each corner holds the bits of that corner's index into the material
+/// table, which intersection ignores and shading reads with the normals.
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuTriangle {
-    /// xyz = vertex position, w unused.
+    /// xyz = vertex position, w = `f32::from_bits(material index)`.
     pub v: [[f32; 4]; 3],
 }
 
-/// One triangle corner's shading attributes; three per triangle, in order.
+/// A triangle's three vertex normals, packed (36 bytes a triangle).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
-pub struct GpuVertexShading {
-    pub normal: [f32; 3],
-    pub shininess: f32,
-    pub kd: [f32; 3],
-    pub _pad0: f32,
-    pub ks: [f32; 3],
-    pub _pad1: f32,
+pub struct GpuTriangleNormals {
+    pub n: [f32; 9],
 }
+
+/// One distinct (kd, ks, shininess) of the scene's triangle corners; scenes
+/// share a few materials among many corners, so a table indexed from the
+/// triangle replaces 96 bytes of per-corner material a triangle.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuMaterial {
+    pub kd: [f32; 3],
+    pub shininess: f32,
+    pub ks: [f32; 3],
+    pub _pad: f32,
+}
+
+/// Lists that may span several bindings when one binding cannot hold them
+/// (`maxStorageBufferRange`), in `GpuFrame::chunk_shift` order, with their
+/// first binding; chunk k > 0 of list j is binding
+/// `SPLIT_FIRST + (SPLIT_CHUNKS - 1) j + k - 1`.
+pub const SPLIT_LISTS: [(usize, &str); 4] = [
+    (3, "triangles"),
+    (4, "normals"),
+    (12, "materials"),
+    (6, "bvh nodes"),
+];
+/// Bindings a split list may span (the shader declares that many).
+pub const SPLIT_CHUNKS: usize = 4;
+/// The first binding of the extra chunks.
+pub const SPLIT_FIRST: usize = 13;
 
 /// `GpuLight::kind` values.
 pub const LIGHT_POINT: u32 = 0;
@@ -196,7 +224,8 @@ pub struct GpuBvhNode {
 pub struct GpuScene {
     pub spheres: Vec<GpuSphere>,
     pub triangles: Vec<GpuTriangle>,
-    pub shading: Vec<GpuVertexShading>,
+    pub normals: Vec<GpuTriangleNormals>,
+    pub materials: Vec<GpuMaterial>,
     pub lights: Vec<GpuLight>,
     pub nodes: Vec<GpuBvhNode>,
     pub prim_refs: Vec<u32>,
@@ -228,26 +257,40 @@ impl GpuScene {
                 _pad: 0.0,
             })
             .collect();
-        let triangles = scene
-            .triangles
-            .iter()
-            .map(|t| GpuTriangle {
-                v: t.vertices.map(|v| f4(v.position)),
+        // Materials are told apart by their f32 bits: the table holds exactly
+        // the values per-corner attributes would.
+        let mut materials: Vec<GpuMaterial> = Vec::new();
+        let mut index_of: HashMap<[u32; 7], u32> = HashMap::new();
+        let mut material_index = |m: &crate::scene::Material| {
+            let material = GpuMaterial {
+                kd: f3(m.kd),
+                shininess: m.shininess as f32,
+                ks: f3(m.ks),
+                _pad: 0.0,
+            };
+            let [r, g, b] = material.kd;
+            let [sr, sg, sb] = material.ks;
+            let key = [r, g, b, sr, sg, sb, material.shininess].map(f32::to_bits);
+            *index_of.entry(key).or_insert_with(|| {
+                materials.push(material);
+                (materials.len() - 1) as u32
             })
-            .collect();
-        let shading = scene
-            .triangles
-            .iter()
-            .flat_map(|t| t.vertices)
-            .map(|v| GpuVertexShading {
-                normal: f3(v.normal),
-                shininess: v.material.shininess as f32,
-                kd: f3(v.material.kd),
-                _pad0: 0.0,
-                ks: f3(v.material.ks),
-                _pad1: 0.0,
-            })
-            .collect();
+        };
+        let mut triangles = Vec::with_capacity(scene.triangles.len());
+        let mut normals = Vec::with_capacity(scene.triangles.len());
+        for t in &scene.triangles {
+            triangles.push(GpuTriangle {
+                v: t.vertices.map(|v| {
+                    let mut p = f4(v.position);
+                    p[3] = f32::from_bits(material_index(&v.material));
+                    p
+                }),
+            });
+            let n = t.vertices.map(|v| f3(v.normal));
+            normals.push(GpuTriangleNormals {
+                n: *n.as_flattened().first_chunk().expect("9 values"),
+            });
+        }
         let lights = scene
             .lights
             .iter()
@@ -283,13 +326,30 @@ impl GpuScene {
         GpuScene {
             spheres,
             triangles,
-            shading,
+            normals,
+            materials,
             lights,
             nodes: bvh.nodes.clone(),
             prim_refs: bvh.prim_refs.clone(),
             velocities,
             ambient: f3(scene.ambient),
         }
+    }
+
+    /// Bytes of each list, as uploaded.
+    pub fn list_bytes(&self) -> [u64; 8] {
+        let b = |len: usize, size: usize| (len.max(1) * size) as u64;
+        use std::mem::size_of;
+        [
+            b(self.spheres.len(), size_of::<GpuSphere>()),
+            b(self.triangles.len(), size_of::<GpuTriangle>()),
+            b(self.normals.len(), size_of::<GpuTriangleNormals>()),
+            b(self.materials.len(), size_of::<GpuMaterial>()),
+            b(self.lights.len(), size_of::<GpuLight>()),
+            b(self.nodes.len(), size_of::<GpuBvhNode>()),
+            b(self.prim_refs.len(), 4),
+            b(self.velocities.len(), 16),
+        ]
     }
 
     /// `effects` as resolved for the scene; `features` decides whether the
@@ -318,6 +378,7 @@ impl GpuScene {
             } else {
                 0.0
             },
+            chunk_shift: [0; 4],
         }
     }
 }

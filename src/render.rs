@@ -9,6 +9,7 @@ use crate::framebuffer::Framebuffer;
 use crate::gpu::{Context, ContextOptions, DeviceSelector, GpuRenderOptions, GpuRenderer};
 use crate::info::Features;
 use crate::layout::GpuScene;
+use crate::memory::{self, MemoryNeed};
 use crate::methods::Methods;
 use crate::probe::{PathRecord, ProbeImage};
 use crate::scene::{Effects, Scene, Settings};
@@ -90,6 +91,9 @@ pub struct RenderOutput {
     pub note: Option<String>,
     /// Vulkan validation warnings and errors seen (GPU renders with validation on).
     pub validation_messages: u32,
+    /// Host memory the render needed beyond the scene and its BVH (checked
+    /// against what was available before it started).
+    pub memory: MemoryNeed,
 }
 
 /// Where the work runs, chosen once from `RenderOptions`.
@@ -265,9 +269,22 @@ impl Renderer {
             .take()
             .unwrap_or_default();
         let p = self.prepare(scene, &mut timings);
+        let mut need = MemoryNeed::image(p.camera.width, p.camera.height);
         let framebuffer = match &self.engine {
-            Engine::Gpu { renderer, .. } => {
+            Engine::Gpu { renderer, ctx } => {
                 let packed = timings.time("pack", || GpuScene::pack(scene, &p.bvh));
+                let device_type = ctx.info().device_type.as_str();
+                let host_device = matches!(device_type, "CPU" | "integrated GPU");
+                let texels = crate::gpu::tile_texels(
+                    self.options
+                        .gpu
+                        .tile_size
+                        .max(crate::layout::WORKGROUP_SIZE),
+                    p.camera.width,
+                    p.camera.height,
+                );
+                need.add_gpu(&packed, texels, host_device);
+                need.check(memory::available())?;
                 let (framebuffer, gpu_timings) = renderer.render(
                     &packed,
                     &p.camera,
@@ -279,6 +296,7 @@ impl Renderer {
                 framebuffer
             }
             Engine::Cpu(precision) => {
+                need.check(memory::available())?;
                 let start = Instant::now();
                 let options = self.cpu_options(&p, *precision);
                 let framebuffer = cpu::render(scene, &p.bvh, &p.camera, &options, progress);
@@ -292,6 +310,7 @@ impl Renderer {
             validation_messages: self.validation_messages(),
             timings,
             note: self.note.clone(),
+            memory: need,
         })
     }
 

@@ -63,7 +63,8 @@ fn structs_match() {
             spp,
             shadow_samples,
             reflect_depth,
-            shutter
+            shutter,
+            chunk_shift
         ]
     );
     check_struct!(m, "Tile", GpuTile, [origin, size, budget, first, _pad]);
@@ -100,12 +101,8 @@ fn structs_match() {
         [center, radius, kd, shininess, ks, _pad]
     );
     check_struct!(m, "Triangle", GpuTriangle, [v]);
-    check_struct!(
-        m,
-        "VertexShading",
-        GpuVertexShading,
-        [normal, shininess, kd, _pad0, ks, _pad1]
-    );
+    check_struct!(m, "TriangleNormals", GpuTriangleNormals, [n]);
+    check_struct!(m, "Material", GpuMaterial, [kd, shininess, ks, _pad]);
     check_struct!(
         m,
         "Light",
@@ -119,18 +116,27 @@ fn structs_match() {
 fn bindings_match_the_pipeline_and_array_strides_match_rust() {
     let m = shader();
     // Element sizes of the storage arrays, by binding.
-    let strides = [
+    let mut strides = vec![
         (2, size_of::<GpuSphere>()),
         (3, size_of::<GpuTriangle>()),
-        (4, size_of::<GpuVertexShading>()),
+        (4, size_of::<GpuTriangleNormals>()),
         (5, size_of::<GpuLight>()),
         (6, size_of::<GpuBvhNode>()),
         (7, size_of::<u32>()),
         (8, 16),
         (9, 16),
         (10, size_of::<GpuPixelState>()),
+        (12, size_of::<GpuMaterial>()),
     ];
+    // A split list's extra chunks hold what its first binding holds.
+    for (j, &(first, _)) in SPLIT_LISTS.iter().enumerate() {
+        let stride = strides.iter().find(|s| s.0 == first).expect("listed").1;
+        for k in 1..SPLIT_CHUNKS {
+            strides.push((SPLIT_FIRST + (SPLIT_CHUNKS - 1) * j + k - 1, stride));
+        }
+    }
     let mut seen = Vec::new();
+    let mut element = Vec::new();
     for (_, var) in m.global_variables.iter() {
         let Some(binding) = &var.binding else {
             continue;
@@ -143,7 +149,8 @@ fn bindings_match_the_pipeline_and_array_strides_match_rust() {
             other => panic!("unexpected address space {other:?}"),
         };
         assert_eq!(glint::gpu::BINDINGS[i], expected, "binding {i}");
-        if let TypeInner::Array { stride, .. } = m.types[var.ty].inner {
+        if let TypeInner::Array { stride, base, .. } = m.types[var.ty].inner {
+            element.push((i, base));
             let want = strides
                 .iter()
                 .find(|s| s.0 == i)
@@ -155,6 +162,17 @@ fn bindings_match_the_pipeline_and_array_strides_match_rust() {
     }
     seen.sort();
     assert_eq!(seen, (0..glint::gpu::BINDINGS.len()).collect::<Vec<_>>());
+    let element_of = |b: usize| element.iter().find(|e| e.0 == b).expect("an array").1;
+    for (j, &(first, name)) in SPLIT_LISTS.iter().enumerate() {
+        for k in 1..SPLIT_CHUNKS {
+            let chunk = SPLIT_FIRST + (SPLIT_CHUNKS - 1) * j + k - 1;
+            assert_eq!(
+                element_of(chunk),
+                element_of(first),
+                "binding {chunk} is chunk {k} of {name}"
+            );
+        }
+    }
 }
 
 fn constant(m: &Module, name: &str) -> Literal {
@@ -197,6 +215,10 @@ fn shared_constants_match() {
         Literal::U32(FLAG_NONFINITE_SURFACE)
     );
     assert_eq!(constant(&m, "PATH_HEADER"), Literal::U32(PATH_HEADER));
+    assert_eq!(
+        constant(&m, "SPLIT_CHUNKS"),
+        Literal::U32(SPLIT_CHUNKS as u32)
+    );
     assert_eq!(
         constant(&m, "MAX_TRAVERSAL_STEPS"),
         Literal::U32(MAX_TRAVERSAL_STEPS)

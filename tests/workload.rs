@@ -233,6 +233,94 @@ fn a_buffer_past_the_device_limit_is_refused() {
     }
 }
 
+/// An `n` x `n` grid of quads (2 n^2 triangles) bent into a bowl in front
+/// of the camera, with smooth normals and a different material at every
+/// vertex, so every per-triangle list grows with `n`.
+fn bowl(n: usize) -> Scene {
+    let vertex = |i: usize, j: usize| {
+        let (u, v) = (i as f64 / n as f64 - 0.5, j as f64 / n as f64 - 0.5);
+        let z = -3.0 + 1.5 * (u * u + v * v);
+        let normal = glam::DVec3::new(3.0 * u, 3.0 * v, 1.0).normalize();
+        format!(
+            "pos: {:.6} {:.6} {z:.6} nor: {:.6} {:.6} {:.6} dif: {:.4} {:.4} 0.3 spe: 0.2 0.2 0.2 shi: {}\n",
+            3.0 * u,
+            2.2 * v,
+            normal.x,
+            normal.y,
+            normal.z,
+            0.2 + 0.7 * (u + 0.5),
+            0.2 + 0.7 * (v + 0.5),
+            1 + (i + j) % 40
+        )
+    };
+    let mut text = format!("{}\namb: 0.1 0.1 0.1\n", 2 * n * n + 2);
+    text.push_str("light pos: -2 3 1 col: 0.6 0.6 0.6\nlight pos: 2 -1 0 col: 0.3 0.3 0.4\n");
+    for i in 0..n {
+        for j in 0..n {
+            for tri in [
+                [(i, j), (i + 1, j), (i + 1, j + 1)],
+                [(i, j), (i + 1, j + 1), (i, j + 1)],
+            ] {
+                text.push_str("triangle\n");
+                for (a, b) in tri {
+                    text.push_str(&vertex(a, b));
+                }
+            }
+        }
+    }
+    glint::scene::parse_scene(text.as_bytes(), "bowl.scene").expect("bowl parses")
+}
+
+/// Lists larger than one binding are split over several, and the image is
+/// the same bit for bit; past what the split bindings hold, the render is
+/// refused before any work.
+#[test]
+fn big_lists_split_over_bindings_render_the_same_image() {
+    let scene = bowl(40);
+    let packed = GpuScene::pack(&scene, &Bvh::for_render(&scene, &Effects::default()));
+    // 3,200 triangles of 48 bytes need 4 chunks of 1,024 under a 64 KiB
+    // limit (the last one partial), the normals too.
+    assert_eq!(packed.triangles.len(), 3200);
+    assert!(
+        packed.materials.len() > 1000,
+        "{} materials",
+        packed.materials.len()
+    );
+    let Some(plain) = render_passes(&scene, 32, 24, |o| o.tile_size = 16) else {
+        return;
+    };
+    let (plain, t_plain) = plain.expect("plain render");
+    assert_eq!(t_plain.counted("split lists"), 0);
+    let (split, t_split) = render_passes(&scene, 32, 24, |o| {
+        o.tile_size = 16;
+        o.storage_limit = Some(65536);
+    })
+    .expect("device")
+    .expect("split render");
+    assert_eq!(t_split.counted("split lists"), 1);
+    for (i, (a, b)) in plain.pixels.iter().zip(&split.pixels).enumerate() {
+        assert_eq!(a.map(f32::to_bits), b.map(f32::to_bits), "pixel {i}");
+    }
+    let cpu = render_cpu(&scene, 32, 24, glint::cpu::Precision::F32, WHITE);
+    let cmp = glint::compare::compare_framebuffers(&cpu, &split, THRESHOLD_LEVELS).expect("size");
+    assert_within("workload-split-lists", &split, &cpu, &cmp, 1);
+    // 512 triangles a chunk: 7 chunks would be needed.
+    match render_passes(&scene, 32, 24, |o| {
+        o.tile_size = 16;
+        o.storage_limit = Some(32768);
+    })
+    .expect("device")
+    {
+        Err(e @ GpuError::Limit { .. }) => {
+            let text = e.to_string();
+            assert!(text.contains("triangles"), "{text}");
+            assert!(text.contains("split over 4 bindings"), "{text}");
+        }
+        Err(e) => panic!("expected a limit error, got {e}"),
+        Ok(_) => panic!("triangles rendered past 4 bindings of their limit"),
+    }
+}
+
 /// Resident memory of this process, from /proc (Linux).
 fn rss_bytes() -> Option<u64> {
     let statm = std::fs::read_to_string("/proc/self/statm").ok()?;

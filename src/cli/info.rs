@@ -3,12 +3,14 @@ use std::process::ExitCode;
 
 use glint::bvh::Bvh;
 use glint::info::SceneInfo;
+use glint::layout::GpuScene;
+use glint::memory::MemoryNeed;
 
 use glint::scene::Effects;
 
 use super::{print_warnings, EffectArgs};
 
-pub fn run(path: &Path, effects: &EffectArgs) -> anyhow::Result<ExitCode> {
+pub fn run(path: &Path, effects: &EffectArgs, size: [u32; 2]) -> anyhow::Result<ExitCode> {
     let scene = glint::scene::read_scene(path)?;
     print_warnings(&scene);
     let bvh = Bvh::build(&scene);
@@ -22,5 +24,19 @@ pub fn run(path: &Path, effects: &EffectArgs) -> anyhow::Result<ExitCode> {
             effects,
         }
     );
+    // What a render at this size needs beyond the scene and its BVH; the GPU
+    // figure assumes a device that shares host memory (the worst case).
+    let [width, height] = size;
+    let cpu = MemoryNeed::image(width, height);
+    let mut gpu = cpu.clone();
+    let tile = glint::gpu::GpuRenderOptions::default().tile_size;
+    let texels = glint::gpu::tile_texels(tile, width, height);
+    gpu.add_gpu(&GpuScene::pack(&scene, &bvh), texels, true);
+    println!("memory      at {width}x{height}: CPU {cpu}");
+    println!("            GPU {gpu}");
+    match glint::memory::available() {
+        Some(bytes) => println!("            available {}", glint::memory::human(bytes)),
+        None => println!("            available: unknown on this system"),
+    }
     Ok(ExitCode::SUCCESS)
 }

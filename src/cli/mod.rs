@@ -39,6 +39,11 @@ enum Command {
         scene: PathBuf,
         #[command(flatten)]
         effects: EffectArgs,
+        /// Image size the memory estimate is for.
+        #[arg(long, default_value_t = glint::camera::DEFAULT_WIDTH)]
+        width: u32,
+        #[arg(long, default_value_t = glint::camera::DEFAULT_HEIGHT)]
+        height: u32,
     },
 }
 
@@ -121,7 +126,12 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Compare(args) => compare::run(args),
         Command::Bench(args) => bench::run(args),
         Command::Devices => devices::run(),
-        Command::Info { scene, effects } => info::run(&scene, &effects),
+        Command::Info {
+            scene,
+            effects,
+            width,
+            height,
+        } => info::run(&scene, &effects, [width, height]),
     }
 }
 

@@ -271,6 +271,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
     );
     if args.verbose {
         println!("timings:\n{timings}");
+        println!("memory:\n  {} beyond the scene and its BVH", output.memory);
     }
     Ok(ExitCode::SUCCESS)
 }

@@ -92,6 +92,8 @@ pub struct DeviceLimits {
     pub max_group_count: [u32; 3],
     /// `maxPerStageDescriptorStorageBuffers`.
     pub max_storage_buffers: u32,
+    /// `minStorageBufferOffsetAlignment`: where a split list's chunks may start.
+    pub storage_offset_alignment: u64,
 }
 
 fn limits_of(inst: &ash::Instance, pd: vk::PhysicalDevice) -> DeviceLimits {
@@ -112,6 +114,7 @@ fn limits_of(inst: &ash::Instance, pd: vk::PhysicalDevice) -> DeviceLimits {
         max_allocation,
         max_group_count: l.max_compute_work_group_count,
         max_storage_buffers: l.max_per_stage_descriptor_storage_buffers,
+        storage_offset_alignment: l.min_storage_buffer_offset_alignment.max(1),
     }
 }
 

@@ -20,4 +20,4 @@ pub use context::{
 };
 pub use error::GpuError;
 pub use pipeline::{Kernel, BINDINGS};
-pub use render::{GpuRenderOptions, GpuRenderer, DEFAULT_PASS_BUDGET};
+pub use render::{tile_texels, GpuRenderOptions, GpuRenderer, DEFAULT_PASS_BUDGET};

@@ -1,7 +1,8 @@
-//! The trace compute pipelines: one descriptor set layout (bindings as
-//! listed in the shader's header) and pipeline layout, and a pipeline per
-//! (methods, feature set, entry point), its SPIR-V specialised by `shader`,
-//! built on first use and kept for the renderer's lifetime.
+//! The trace compute pipelines: two descriptor set layouts (bindings as
+//! listed in the shader's header: the plain one, and one with the extra
+//! chunks of split lists) with their pipeline layouts, and a pipeline per
+//! (methods, feature set, split, entry point), its SPIR-V specialised by
+//! `shader`, built on first use and kept for the renderer's lifetime.
 
 use std::collections::HashMap;
 use std::ffi::CStr;
@@ -41,11 +42,14 @@ impl Kernel {
 pub struct PipelineKey {
     pub methods: Methods,
     pub features: Features,
+    /// Big lists span several bindings: the layout with all of `BINDINGS`.
+    pub split: bool,
     pub kernel: Kernel,
 }
 
-/// Descriptor types of bindings 0.. of group 0, in the shader's order.
-pub const BINDINGS: [vk::DescriptorType; 12] = [
+/// Descriptor types of bindings 0.. of group 0, in the shader's order; the
+/// plain layout has the first `PLAIN_BINDINGS`, the split one all of them.
+pub const BINDINGS: [vk::DescriptorType; 25] = [
     vk::DescriptorType::UNIFORM_BUFFER, // frame
     vk::DescriptorType::UNIFORM_BUFFER, // tile
     vk::DescriptorType::STORAGE_BUFFER, // spheres
@@ -58,12 +62,45 @@ pub const BINDINGS: [vk::DescriptorType; 12] = [
     vk::DescriptorType::STORAGE_BUFFER, // velocities
     vk::DescriptorType::STORAGE_BUFFER, // pixel state
     vk::DescriptorType::STORAGE_BUFFER, // status
+    vk::DescriptorType::STORAGE_BUFFER, // materials
+    // Chunks 1-3 of triangles, normals, materials and nodes
+    // (layout::SPLIT_LISTS).
+    vk::DescriptorType::STORAGE_BUFFER,
+    vk::DescriptorType::STORAGE_BUFFER,
+    vk::DescriptorType::STORAGE_BUFFER,
+    vk::DescriptorType::STORAGE_BUFFER,
+    vk::DescriptorType::STORAGE_BUFFER,
+    vk::DescriptorType::STORAGE_BUFFER,
+    vk::DescriptorType::STORAGE_BUFFER,
+    vk::DescriptorType::STORAGE_BUFFER,
+    vk::DescriptorType::STORAGE_BUFFER,
+    vk::DescriptorType::STORAGE_BUFFER,
+    vk::DescriptorType::STORAGE_BUFFER,
+    vk::DescriptorType::STORAGE_BUFFER,
 ];
+/// Bindings of the plain layout (no split lists).
+pub const PLAIN_BINDINGS: usize = 13;
+
+/// The bindings of the plain (`split` false) or split layout.
+pub fn bindings(split: bool) -> &'static [vk::DescriptorType] {
+    if split {
+        &BINDINGS
+    } else {
+        &BINDINGS[..PLAIN_BINDINGS]
+    }
+}
+
+/// A descriptor set layout and the pipeline layout over it.
+#[derive(Clone, Copy)]
+pub(crate) struct Layout {
+    pub(crate) set: vk::DescriptorSetLayout,
+    pub(crate) pipeline: vk::PipelineLayout,
+}
 
 pub struct TracePipeline {
     shared: Arc<Shared>,
-    pub(crate) set_layout: vk::DescriptorSetLayout,
-    pub(crate) layout: vk::PipelineLayout,
+    /// Plain, then split.
+    layouts: [Layout; 2],
     pipelines: Mutex<HashMap<PipelineKey, vk::Pipeline>>,
 }
 
@@ -71,43 +108,56 @@ impl TracePipeline {
     /// The layouts; pipelines are built by `get`.
     pub fn new(ctx: &Context) -> Result<TracePipeline, GpuError> {
         let shared = ctx.shared.clone();
-        let device = &shared.device;
-        let bindings: Vec<_> = BINDINGS
-            .iter()
-            .enumerate()
-            .map(|(i, &ty)| {
-                vk::DescriptorSetLayoutBinding::default()
-                    .binding(i as u32)
-                    .descriptor_type(ty)
-                    .descriptor_count(1)
-                    .stage_flags(vk::ShaderStageFlags::COMPUTE)
-            })
-            .collect();
+        let null = Layout {
+            set: vk::DescriptorSetLayout::null(),
+            pipeline: vk::PipelineLayout::null(),
+        };
         // Build into a partially filled struct so that Drop cleans up whatever
         // was created before a failure.
         let mut p = TracePipeline {
             shared: shared.clone(),
-            set_layout: vk::DescriptorSetLayout::null(),
-            layout: vk::PipelineLayout::null(),
+            layouts: [null; 2],
             pipelines: Mutex::new(HashMap::new()),
         };
-        // SAFETY: valid create infos on a live device; handles are owned by `p`.
-        unsafe {
-            p.set_layout = device
-                .create_descriptor_set_layout(
-                    &vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings),
-                    None,
-                )
-                .call("vkCreateDescriptorSetLayout")?;
-            let set_layouts = [p.set_layout];
-            p.layout = device
-                .create_pipeline_layout(
-                    &vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts),
-                    None,
-                )
-                .call("vkCreatePipelineLayout")?;
+        for split in [false, true] {
+            let bindings: Vec<_> = bindings(split)
+                .iter()
+                .enumerate()
+                .map(|(i, &ty)| {
+                    vk::DescriptorSetLayoutBinding::default()
+                        .binding(i as u32)
+                        .descriptor_type(ty)
+                        .descriptor_count(1)
+                        .stage_flags(vk::ShaderStageFlags::COMPUTE)
+                })
+                .collect();
+            let layout = &mut p.layouts[usize::from(split)];
+            // SAFETY: valid create infos on a live device; handles are owned
+            // by `p`.
+            unsafe {
+                layout.set = shared
+                    .device
+                    .create_descriptor_set_layout(
+                        &vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings),
+                        None,
+                    )
+                    .call("vkCreateDescriptorSetLayout")?;
+                let set_layouts = [layout.set];
+                layout.pipeline = shared
+                    .device
+                    .create_pipeline_layout(
+                        &vk::PipelineLayoutCreateInfo::default().set_layouts(&set_layouts),
+                        None,
+                    )
+                    .call("vkCreatePipelineLayout")?;
+            }
         }
         Ok(p)
+    }
+
+    /// The plain (`split` false) or split layout.
+    pub(crate) fn layout(&self, split: bool) -> Layout {
+        self.layouts[usize::from(split)]
     }
 
     /// How long building `key`'s pipeline takes from scratch (specialising
@@ -137,7 +187,7 @@ impl TracePipeline {
     }
 
     fn build(&self, key: PipelineKey) -> Result<vk::Pipeline, GpuError> {
-        let words = super::shader::spirv(key.methods, key.features)?;
+        let words = super::shader::spirv(key.methods, key.features, key.split)?;
         let device = &self.shared.device;
         // SAFETY: valid create infos on a live device; the module is destroyed
         // once the pipeline exists, the pipeline is owned by `self`.
@@ -151,7 +201,7 @@ impl TracePipeline {
                 .name(key.kernel.entry_point());
             let info = vk::ComputePipelineCreateInfo::default()
                 .stage(stage)
-                .layout(self.layout);
+                .layout(self.layout(key.split).pipeline);
             let created = device.create_compute_pipelines(vk::PipelineCache::null(), &[info], None);
             device.destroy_shader_module(module, None);
             created
@@ -175,8 +225,10 @@ impl Drop for TracePipeline {
             for (_, p) in pipelines.drain() {
                 device.destroy_pipeline(p, None);
             }
-            device.destroy_pipeline_layout(self.layout, None);
-            device.destroy_descriptor_set_layout(self.set_layout, None);
+            for layout in &self.layouts {
+                device.destroy_pipeline_layout(layout.pipeline, None);
+                device.destroy_descriptor_set_layout(layout.set, None);
+            }
         }
     }
 }

@@ -24,14 +24,16 @@ use ash::vk;
 use gpu_allocator::MemoryLocation;
 
 use super::buffer::Buffer;
+use super::context::DeviceLimits;
 use super::context::{Context, Shared};
 use super::error::{GpuError, VkResultExt};
-use super::pipeline::{Kernel, PipelineKey, TracePipeline, BINDINGS};
+use super::pipeline::{bindings, Kernel, PipelineKey, TracePipeline, BINDINGS};
 use crate::camera::Camera;
 use crate::framebuffer::Framebuffer;
 use crate::info::Features;
 use crate::layout::{
-    padded, GpuPixelState, GpuScene, GpuStatus, GpuTile, PATH_HEADER, PATH_PER_LIGHT,
+    padded, GpuBvhNode, GpuMaterial, GpuPixelState, GpuScene, GpuStatus, GpuTile, GpuTriangle,
+    GpuTriangleNormals, PATH_HEADER, PATH_PER_LIGHT, SPLIT_CHUNKS, SPLIT_FIRST, SPLIT_LISTS,
     WORKGROUP_SIZE,
 };
 use crate::methods::Methods;
@@ -39,11 +41,109 @@ use crate::probe::{PathRecord, ProbeImage};
 use crate::scene::Effects;
 use crate::timing::Timings;
 
-fn key(options: &GpuRenderOptions, kernel: Kernel) -> PipelineKey {
+fn key(options: &GpuRenderOptions, kernel: Kernel, split: bool) -> PipelineKey {
     PipelineKey {
         methods: options.methods,
         features: options.features,
+        split,
         kernel,
+    }
+}
+
+/// Element sizes of the `SPLIT_LISTS`, in their order.
+const SPLIT_STRIDES: [u64; 4] = [
+    std::mem::size_of::<GpuTriangle>() as u64,
+    std::mem::size_of::<GpuTriangleNormals>() as u64,
+    std::mem::size_of::<GpuMaterial>() as u64,
+    std::mem::size_of::<GpuBvhNode>() as u64,
+];
+
+/// How one render lays the `SPLIT_LISTS` over bindings.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Split {
+    /// Some list exceeds one binding: the split layout and shader.
+    split: bool,
+    /// Per list: log2 of the elements per chunk (0 when not split).
+    shifts: [u32; 4],
+    /// Per list: bytes per chunk (the whole list when not split).
+    chunk_bytes: [u64; 4],
+}
+
+impl Split {
+    /// The chunking of lists of `lens` bytes under `limits`; an error when a
+    /// list needs more than `SPLIT_CHUNKS` bindings.
+    fn plan(lens: [u64; 4], limits: &DeviceLimits) -> Result<Split, GpuError> {
+        let range = limits.max_storage_range;
+        if lens.iter().all(|&len| len <= range) {
+            return Ok(Split {
+                split: false,
+                shifts: [0; 4],
+                chunk_bytes: lens,
+            });
+        }
+        let mut plan = Split {
+            split: true,
+            shifts: [0; 4],
+            chunk_bytes: [0; 4],
+        };
+        for (j, (&len, &stride)) in lens.iter().zip(&SPLIT_STRIDES).enumerate() {
+            let (binding, name) = SPLIT_LISTS[j];
+            // A power of two of elements, so the shader finds the chunk with a
+            // shift; at least one element, at most 2^31.
+            let elems = (range / stride).max(1);
+            let shift = elems.ilog2().min(31);
+            let chunk = stride << shift;
+            let alignment = limits.storage_offset_alignment;
+            if !chunk.is_multiple_of(alignment) {
+                return Err(GpuError::Limit {
+                    what: format!("a chunk of the {name} buffer (binding {binding})"),
+                    needed: chunk,
+                    limit_name: "minStorageBufferOffsetAlignment, a multiple of",
+                    limit: alignment,
+                    unit: " bytes",
+                    hint: "render fewer primitives on this device, or use --backend cpu".into(),
+                });
+            }
+            let capacity = chunk * SPLIT_CHUNKS as u64;
+            if len > capacity {
+                return Err(GpuError::Limit {
+                    what: format!(
+                        "the {name} buffer (binding {binding}, split over {SPLIT_CHUNKS} bindings)"
+                    ),
+                    needed: len,
+                    limit_name: "maxStorageBufferRange per binding",
+                    limit: capacity,
+                    unit: " bytes",
+                    hint: "render fewer primitives on this device, or use --backend cpu".into(),
+                });
+            }
+            plan.shifts[j] = shift;
+            plan.chunk_bytes[j] = chunk;
+        }
+        Ok(plan)
+    }
+
+    /// (list, chunk) when `binding` shows a chunk of a split list.
+    fn chunk_of(binding: usize) -> Option<(usize, usize)> {
+        if let Some(j) = SPLIT_LISTS.iter().position(|&(b, _)| b == binding) {
+            return Some((j, 0));
+        }
+        let extra = binding.checked_sub(SPLIT_FIRST)?;
+        let per = SPLIT_CHUNKS - 1;
+        (extra < per * SPLIT_LISTS.len()).then(|| (extra / per, extra % per + 1))
+    }
+
+    /// The (offset, range) chunk `k` of list `j` of `len` bytes is bound to.
+    /// A chunk past the list's end repeats chunk 0: the shader never reads it,
+    /// but Vulkan wants every binding of the layout written.
+    fn range(&self, j: usize, k: usize, len: u64) -> (u64, u64) {
+        let chunk = self.chunk_bytes[j];
+        let offset = chunk * k as u64;
+        if offset < len {
+            (offset, chunk.min(len - offset))
+        } else {
+            (0, chunk.min(len))
+        }
     }
 }
 
@@ -57,6 +157,7 @@ const B_TILE: usize = 1;
 const B_OUTPUT: usize = 8;
 const B_STATE: usize = 10;
 const B_STATUS: usize = 11;
+const B_MATERIALS: usize = 12;
 /// A cut tile is redone with its budget divided by this.
 const BUDGET_BACKOFF: u32 = 8;
 
@@ -220,7 +321,8 @@ struct Slot {
     state: Reusable,
     command: vk::CommandBuffer,
     fence: vk::Fence,
-    set: vk::DescriptorSet,
+    /// A set of the plain layout, then one of the split layout.
+    sets: [vk::DescriptorSet; 2],
 }
 
 /// Everything a render needs on the device, kept across renders.
@@ -259,7 +361,7 @@ impl GpuRenderer {
         options: &GpuRenderOptions,
         kernel: Kernel,
     ) -> Result<Duration, GpuError> {
-        self.pipeline.measure_build(key(options, kernel))
+        self.pipeline.measure_build(key(options, kernel, false))
     }
 
     /// Builds (or finds in the cache) the pipeline `options` call for;
@@ -269,7 +371,7 @@ impl GpuRenderer {
         options: &GpuRenderOptions,
         kernel: Kernel,
     ) -> Result<Duration, GpuError> {
-        Ok(self.pipeline.get(key(options, kernel))?.1)
+        Ok(self.pipeline.get(key(options, kernel, false))?.1)
     }
 
     /// Renders `scene` as seen by `camera`. `progress(tiles_done, tiles_total)`
@@ -350,24 +452,36 @@ impl GpuRenderer {
     }
 
     /// The bytes each binding of a render would hold, checked against the
-    /// device's limits before anything is allocated.
+    /// device's limits before anything is allocated, and how the big lists
+    /// are split over bindings to fit.
     fn check_limits(
         &self,
         uploads: &[Upload],
         slot_bytes: &[(usize, u64)],
         storage_limit: Option<u64>,
-    ) -> Result<(), GpuError> {
+    ) -> Result<Split, GpuError> {
         let mut limits = self.ctx.shared.limits;
         if let Some(cap) = storage_limit {
             limits.max_storage_range = limits.max_storage_range.min(cap);
         }
-        let storage = BINDINGS
+        let len_of = |binding: usize| {
+            uploads
+                .iter()
+                .find(|u| u.binding == binding)
+                .map_or(0, |u| u.bytes.len() as u64)
+        };
+        let split = Split::plan(SPLIT_LISTS.map(|(b, _)| len_of(b)), &limits)?;
+        let storage = bindings(split.split)
             .iter()
             .filter(|&&t| t == vk::DescriptorType::STORAGE_BUFFER)
             .count() as u32;
         if storage > limits.max_storage_buffers {
             return Err(GpuError::Limit {
-                what: "storage buffers per shader stage".into(),
+                what: if split.split {
+                    "storage buffers per shader stage (with the big lists split)".into()
+                } else {
+                    "storage buffers per shader stage".into()
+                },
                 needed: u64::from(storage),
                 limit_name: "maxPerStageDescriptorStorageBuffers",
                 limit: u64::from(limits.max_storage_buffers),
@@ -391,7 +505,12 @@ impl GpuRenderer {
                 _ => "render fewer primitives or lights on this device, or use --backend cpu"
                     .to_string(),
             };
-            if bytes > limit {
+            // A split list's chunks fit by construction (Split::plan).
+            let bound = match Split::chunk_of(binding) {
+                Some((j, _)) => split.chunk_bytes[j].min(bytes),
+                None => bytes,
+            };
+            if bound > limit {
                 return Err(GpuError::Limit {
                     what: format!("the {name} buffer (binding {binding})"),
                     needed: bytes,
@@ -412,7 +531,7 @@ impl GpuRenderer {
                 });
             }
         }
-        Ok(())
+        Ok(split)
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -432,7 +551,7 @@ impl GpuRenderer {
             Job::Image(kernel) => (
                 kernel,
                 tiles(camera.width, camera.height, tile_edge),
-                u64::from(tile_edge) * u64::from(tile_edge),
+                tile_texels(tile_edge, camera.width, camera.height),
             ),
             Job::Pixel(origin) => {
                 let lights = (scene.lights.len() as u32).min(PATH_MAX_LIGHTS);
@@ -452,23 +571,26 @@ impl GpuRenderer {
             _ => std::mem::size_of::<GpuPixelState>() as u64,
         };
         let out_bytes = out_texels * TEXEL_BYTES;
-        let frame = scene.frame(camera, background, &options.effects, &options.features);
-        let uploads = [
-            upload(B_FRAME, "frame", bytemuck::bytes_of(&frame).into()),
+        let mut frame = scene.frame(camera, background, &options.effects, &options.features);
+        let mut uploads = vec![
+            upload(B_FRAME, "frame", bytemuck::bytes_of(&frame).to_vec().into()),
             upload(2, "spheres", padded(&scene.spheres)),
             upload(3, "triangles", padded(&scene.triangles)),
-            upload(4, "shading", padded(&scene.shading)),
+            upload(4, "normals", padded(&scene.normals)),
             upload(5, "lights", padded(&scene.lights)),
             upload(6, "bvh nodes", padded(&scene.nodes)),
             upload(7, "primitive refs", padded(&scene.prim_refs)),
             upload(9, "velocities", padded(&scene.velocities)),
+            upload(B_MATERIALS, "materials", padded(&scene.materials)),
         ];
-        self.check_limits(
+        let split = self.check_limits(
             &uploads,
             &[(B_OUTPUT, out_bytes), (B_STATE, state_bytes)],
             options.storage_limit,
         )?;
-        let (pipeline, build_time) = self.pipeline.get(key(options, kernel))?;
+        frame.chunk_shift = split.shifts;
+        uploads[0].bytes = bytemuck::bytes_of(&frame).to_vec().into();
+        let (pipeline, build_time) = self.pipeline.get(key(options, kernel, split.split))?;
         if !build_time.is_zero() {
             timings.add("pipeline", build_time);
         }
@@ -481,7 +603,7 @@ impl GpuRenderer {
         let upload_start = Instant::now();
         self.upload(res, &uploads)?;
         for slot in &mut res.slots {
-            self.bind_slot(slot, &res.scene, &uploads, out_bytes, state_bytes)?;
+            self.bind_slot(slot, &res.scene, &uploads, &split, out_bytes, state_bytes)?;
         }
         timings.add("upload", upload_start.elapsed());
 
@@ -505,7 +627,14 @@ impl GpuRenderer {
                     pass: 1,
                     budget: options.pass_budget.max(1),
                 };
-                self.submit_pass(&mut res.slots[s], pipeline, job, work, out_texels)?;
+                self.submit_pass(
+                    &mut res.slots[s],
+                    pipeline,
+                    split.split,
+                    job,
+                    work,
+                    out_texels,
+                )?;
                 passes += 1;
                 in_flight.push_back((s, work));
             }
@@ -548,7 +677,14 @@ impl GpuRenderer {
                 free.push(s);
                 continue;
             }
-            self.submit_pass(&mut res.slots[s], pipeline, job, work, out_texels)?;
+            self.submit_pass(
+                &mut res.slots[s],
+                pipeline,
+                split.split,
+                job,
+                work,
+                out_texels,
+            )?;
             passes += 1;
             in_flight.push_back((s, work));
         }
@@ -558,6 +694,9 @@ impl GpuRenderer {
         );
         timings.add("readback", readback);
         timings.count("passes", passes);
+        if split.split {
+            timings.count("split lists", 1);
+        }
         if retries > 0 {
             // Tiles redone with a smaller budget after a pass was cut short.
             timings.count("retries", retries);
@@ -574,17 +713,20 @@ impl GpuRenderer {
             descriptor_pool: vk::DescriptorPool::null(),
             fences: Vec::new(),
         };
-        let uniform = BINDINGS
-            .iter()
+        // Each slot has a set of each layout (plain and split).
+        let both = bindings(false).iter().chain(bindings(true));
+        let uniform = both
+            .clone()
             .filter(|&&t| t == vk::DescriptorType::UNIFORM_BUFFER)
             .count() as u32;
+        let storage = both.count() as u32 - uniform;
         let sizes = [
             vk::DescriptorPoolSize::default()
                 .ty(vk::DescriptorType::UNIFORM_BUFFER)
                 .descriptor_count(uniform * SLOTS as u32),
             vk::DescriptorPoolSize::default()
                 .ty(vk::DescriptorType::STORAGE_BUFFER)
-                .descriptor_count((BINDINGS.len() as u32 - uniform) * SLOTS as u32),
+                .descriptor_count(storage * SLOTS as u32),
         ];
         // SAFETY: valid create infos on a live device; handles owned by `pools`.
         unsafe {
@@ -599,7 +741,7 @@ impl GpuRenderer {
             pools.descriptor_pool = device
                 .create_descriptor_pool(
                     &vk::DescriptorPoolCreateInfo::default()
-                        .max_sets(SLOTS as u32)
+                        .max_sets(2 * SLOTS as u32)
                         .pool_sizes(&sizes),
                     None,
                 )
@@ -615,11 +757,12 @@ impl GpuRenderer {
             (B_FRAME, "frame"),
             (2, "spheres"),
             (3, "triangles"),
-            (4, "shading"),
+            (4, "normals"),
             (5, "lights"),
             (6, "bvh nodes"),
             (7, "primitive refs"),
             (9, "velocities"),
+            (B_MATERIALS, "materials"),
         ]
         .into_iter()
         .map(|(binding, name)| {
@@ -753,16 +896,20 @@ impl GpuRenderer {
             vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST,
             MemoryLocation::GpuToCpu,
         )?;
-        let set_layouts = [self.pipeline.set_layout];
-        // SAFETY: the pool was sized for SLOTS sets of this layout.
-        let set = unsafe {
+        let set_layouts = [
+            self.pipeline.layout(false).set,
+            self.pipeline.layout(true).set,
+        ];
+        // SAFETY: the pool was sized for SLOTS sets of each layout.
+        let sets = unsafe {
             shared.device.allocate_descriptor_sets(
                 &vk::DescriptorSetAllocateInfo::default()
                     .descriptor_pool(pools.descriptor_pool)
                     .set_layouts(&set_layouts),
             )
         }
-        .call("vkAllocateDescriptorSets")?[0];
+        .call("vkAllocateDescriptorSets")?;
+        let sets = [sets[0], sets[1]];
         let command = self.command_buffer(pools)?;
         let fence = self.fence(pools)?;
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
@@ -786,17 +933,19 @@ impl GpuRenderer {
             ),
             command,
             fence,
-            set,
+            sets,
         })
     }
 
-    /// Points the slot's descriptor set at this render's buffers, each bound
-    /// with exactly its contents' size (the shader's `arrayLength` sees it).
+    /// Points the slot's descriptor set of the render's layout at its
+    /// buffers, each bound with exactly its contents' size (the shader's
+    /// `arrayLength` sees it), a split list chunk by chunk.
     fn bind_slot(
         &self,
         slot: &mut Slot,
         scene: &[(usize, Reusable)],
         uploads: &[Upload],
+        split: &Split,
         out_bytes: u64,
         state_bytes: u64,
     ) -> Result<(), GpuError> {
@@ -804,39 +953,56 @@ impl GpuRenderer {
         slot.output.at_least(shared, out_bytes)?;
         slot.readback.at_least(shared, out_bytes)?;
         slot.state.at_least(shared, state_bytes)?;
-        let mut bound: Vec<(usize, vk::Buffer, u64)> = uploads
-            .iter()
-            .map(|u| {
-                let buffer = scene
-                    .iter()
-                    .find(|(b, _)| *b == u.binding)
-                    .map(|(_, r)| r.get().raw)
-                    .expect("uploaded");
-                (u.binding, buffer, u.bytes.len() as u64)
+        let scene_list = |binding: usize| {
+            let buffer = scene
+                .iter()
+                .find(|(b, _)| *b == binding)
+                .map(|(_, r)| r.get().raw)
+                .expect("uploaded");
+            let len = uploads
+                .iter()
+                .find(|u| u.binding == binding)
+                .map(|u| u.bytes.len() as u64)
+                .expect("uploaded");
+            (buffer, len)
+        };
+        let bound: Vec<(vk::Buffer, u64, u64)> = (0..bindings(split.split).len())
+            .map(|binding| match binding {
+                B_TILE => (slot.tile.raw, 0, slot.tile.size),
+                B_OUTPUT => (slot.output.get().raw, 0, out_bytes),
+                B_STATE => (slot.state.get().raw, 0, state_bytes),
+                B_STATUS => (slot.status.raw, 0, slot.status.size),
+                _ => match Split::chunk_of(binding) {
+                    Some((j, k)) => {
+                        let (buffer, len) = scene_list(SPLIT_LISTS[j].0);
+                        let (offset, range) = split.range(j, k, len);
+                        (buffer, offset, range)
+                    }
+                    None => {
+                        let (buffer, len) = scene_list(binding);
+                        (buffer, 0, len)
+                    }
+                },
             })
             .collect();
-        bound.push((B_TILE, slot.tile.raw, slot.tile.size));
-        bound.push((B_OUTPUT, slot.output.get().raw, out_bytes));
-        bound.push((B_STATE, slot.state.get().raw, state_bytes));
-        bound.push((B_STATUS, slot.status.raw, slot.status.size));
-        bound.sort_by_key(|(b, _, _)| *b);
-        debug_assert!(bound.iter().map(|(b, _, _)| *b).eq(0..BINDINGS.len()));
         let infos: Vec<[vk::DescriptorBufferInfo; 1]> = bound
             .iter()
-            .map(|&(_, buffer, range)| {
+            .map(|&(buffer, offset, range)| {
                 [vk::DescriptorBufferInfo::default()
                     .buffer(buffer)
+                    .offset(offset)
                     .range(range)]
             })
             .collect();
-        let writes: Vec<vk::WriteDescriptorSet> = bound
+        let set = slot.sets[usize::from(split.split)];
+        let writes: Vec<vk::WriteDescriptorSet> = infos
             .iter()
-            .zip(&infos)
-            .map(|((binding, _, _), info)| {
+            .enumerate()
+            .map(|(binding, info)| {
                 vk::WriteDescriptorSet::default()
-                    .dst_set(slot.set)
-                    .dst_binding(*binding as u32)
-                    .descriptor_type(BINDINGS[*binding])
+                    .dst_set(set)
+                    .dst_binding(binding as u32)
+                    .descriptor_type(BINDINGS[binding])
                     .buffer_info(info)
             })
             .collect();
@@ -846,10 +1012,12 @@ impl GpuRenderer {
         Ok(())
     }
 
+    #[allow(clippy::too_many_arguments)]
     fn submit_pass(
         &self,
         slot: &mut Slot,
         pipeline: vk::Pipeline,
+        split: bool,
         job: Job,
         work: TileWork,
         out_texels: u64,
@@ -923,9 +1091,9 @@ impl GpuRenderer {
             device.cmd_bind_descriptor_sets(
                 slot.command,
                 vk::PipelineBindPoint::COMPUTE,
-                self.pipeline.layout,
+                self.pipeline.layout(split).pipeline,
                 0,
-                &[slot.set],
+                &[slot.sets[usize::from(split)]],
                 &[],
             );
             device.cmd_dispatch(slot.command, groups[0], groups[1], 1);
@@ -1062,6 +1230,12 @@ fn usage_for(ty: vk::DescriptorType) -> vk::BufferUsageFlags {
     } else {
         vk::BufferUsageFlags::STORAGE_BUFFER
     }
+}
+
+/// Texels of the largest tile of a `width` x `height` image cut into tiles
+/// of `edge`: what each slot's tile buffers hold.
+pub fn tile_texels(edge: u32, width: u32, height: u32) -> u64 {
+    u64::from(edge.min(width)) * u64::from(edge.min(height))
 }
 
 fn tiles(width: u32, height: u32, edge: u32) -> Vec<TileRect> {

@@ -54,10 +54,15 @@ fn validator() -> Validator {
 }
 
 /// The override values of a variant, as `process_overrides` takes them.
-pub fn pipeline_constants(methods: Methods, features: Features) -> naga::back::PipelineConstants {
+pub fn pipeline_constants(
+    methods: Methods,
+    features: Features,
+    split: bool,
+) -> naga::back::PipelineConstants {
     let mut constants = naga::back::PipelineConstants::default();
     let flag = |on: bool| if on { 1.0 } else { 0.0 };
     constants.insert("ROBUST".into(), flag(methods == Methods::Robust));
+    constants.insert("SPLIT".into(), flag(split));
     for (name, on) in features.overrides() {
         constants.insert(name.into(), flag(on));
     }
@@ -65,18 +70,24 @@ pub fn pipeline_constants(methods: Methods, features: Features) -> naga::back::P
 }
 
 /// The module with its overrides resolved and dead feature branches removed,
-/// validated.
+/// validated. `split`: big lists span several bindings (`layout::SPLIT_LISTS`).
 pub fn specialize(
     methods: Methods,
     features: Features,
+    split: bool,
 ) -> Result<(Module, ModuleInfo), ShaderError> {
     let (module, info) = parsed()?;
-    let what = format!("{} methods, features {}", methods.name(), features.label());
+    let what = format!(
+        "{} methods, features {}{}",
+        methods.name(),
+        features.label(),
+        if split { ", split lists" } else { "" }
+    );
     let fail = |message: String| ShaderError {
         what: what.clone(),
         message,
     };
-    let constants = pipeline_constants(methods, features);
+    let constants = pipeline_constants(methods, features, split);
     let (resolved, _) =
         naga::back::pipeline_constants::process_overrides(module, info, None, &constants)
             .map_err(|e| fail(format!("resolving overrides: {e}")))?;
@@ -99,8 +110,8 @@ pub fn specialize(
 }
 
 /// SPIR-V words of the specialised shader, all entry points.
-pub fn spirv(methods: Methods, features: Features) -> Result<Vec<u32>, ShaderError> {
-    let (module, info) = specialize(methods, features)?;
+pub fn spirv(methods: Methods, features: Features, split: bool) -> Result<Vec<u32>, ShaderError> {
+    let (module, info) = specialize(methods, features, split)?;
     let options = spv::Options {
         // SPIR-V 1.0 runs on every Vulkan 1.0 device, MoltenVK included.
         lang_version: (1, 0),
@@ -256,7 +267,7 @@ mod tests {
             triangles: true,
             ..Features::default()
         };
-        let (m, _) = specialize(Methods::Robust, plain).unwrap();
+        let (m, _) = specialize(Methods::Robust, plain, false).unwrap();
         let names = function_names(&m);
         for gone in [
             "area_term",
@@ -268,7 +279,7 @@ mod tests {
         ] {
             assert!(!names.iter().any(|n| n == gone), "{gone} in {names:?}");
         }
-        let (all, _) = specialize(Methods::Robust, Features::ALL).unwrap();
+        let (all, _) = specialize(Methods::Robust, Features::ALL, false).unwrap();
         let names = function_names(&all);
         for kept in [
             "area_term",
@@ -277,6 +288,36 @@ mod tests {
             "stratified_2d",
         ] {
             assert!(names.iter().any(|n| n == kept), "{kept} missing: {names:?}");
+        }
+    }
+
+    /// Names of the global variables any function or entry point reads.
+    fn globals_used(m: &Module) -> Vec<String> {
+        let functions = m.functions.iter().map(|(_, f)| f);
+        let mut used: Vec<String> = functions
+            .chain(m.entry_points.iter().map(|ep| &ep.function))
+            .flat_map(|f| f.expressions.iter())
+            .filter_map(|(_, e)| match e {
+                Expression::GlobalVariable(g) => m.global_variables[*g].name.clone(),
+                _ => None,
+            })
+            .collect();
+        used.sort();
+        used.dedup();
+        used
+    }
+
+    #[test]
+    fn only_a_split_shader_reads_the_extra_chunks() {
+        let chunk = |n: &String| n.ends_with(['1', '2', '3']);
+        let (plain, _) = specialize(Methods::Robust, Features::ALL, false).unwrap();
+        let used = globals_used(&plain);
+        assert!(used.iter().any(|n| n == "triangles"), "{used:?}");
+        assert!(!used.iter().any(chunk), "{used:?}");
+        let (split, _) = specialize(Methods::Robust, Features::ALL, true).unwrap();
+        let used = globals_used(&split);
+        for name in ["triangles3", "normals3", "materials3", "nodes3"] {
+            assert!(used.iter().any(|n| n == name), "{name} unused: {used:?}");
         }
     }
 
@@ -292,7 +333,9 @@ mod tests {
                 multisample: bits & 32 != 0,
             };
             for methods in Methods::ALL {
-                spirv(methods, f).unwrap_or_else(|e| panic!("{e}"));
+                for split in [false, true] {
+                    spirv(methods, f, split).unwrap_or_else(|e| panic!("{e}"));
+                }
             }
         }
     }
