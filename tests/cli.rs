@@ -479,3 +479,52 @@ fn effect_overrides_are_checked() {
         assert!(stderr(&o).contains(bad[0]), "{bad:?}: {}", stderr(&o));
     }
 }
+
+/// A signal while the image is being encoded removes the temporary file and
+/// leaves no image: the handler runs where drops cannot.
+#[test]
+fn an_interrupted_write_leaves_nothing_behind() {
+    for signal in ["-INT", "-TERM"] {
+        let d = tmp();
+        std::fs::write(
+            d.path().join("empty.scene"),
+            "1\namb: 0.1 0.1 0.1\nlight\npos: 0 0 0\ncol: 1 1 1\n",
+        )
+        .expect("write scene");
+        // 6144^2 JPEG: about 2 s of encoding on a 2-core machine, a wide
+        // window to interrupt.
+        let mut child = Command::new(env!("CARGO_BIN_EXE_glint"))
+            .args(["render", "empty.scene", "out.jpg", "--backend", "cpu"])
+            .args(["--width", "6144", "--height", "6144"])
+            .current_dir(d.path())
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .expect("start glint");
+        let parts = || {
+            std::fs::read_dir(d.path())
+                .expect("list dir")
+                .filter_map(Result::ok)
+                .filter(|e| e.file_name().to_string_lossy().ends_with(".part"))
+                .count()
+        };
+        let start = std::time::Instant::now();
+        while parts() == 0 {
+            assert!(
+                child.try_wait().expect("poll").is_none(),
+                "glint ended before writing (signal {signal})"
+            );
+            assert!(start.elapsed().as_secs() < 120, "no .part file appeared");
+            std::thread::sleep(std::time::Duration::from_millis(5));
+        }
+        let killed = Command::new("kill")
+            .args([signal, &child.id().to_string()])
+            .status()
+            .expect("run kill");
+        assert!(killed.success());
+        let status = child.wait().expect("wait for glint");
+        assert_eq!(status.code(), Some(130), "signal {signal}: {status:?}");
+        assert_eq!(parts(), 0, "a .part file was left after {signal}");
+        assert!(!d.path().join("out.jpg").exists());
+    }
+}
