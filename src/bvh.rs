@@ -22,13 +22,28 @@ const BIN_COUNT: usize = 16;
 const INTERSECT_COST: f64 = 1.0;
 const TRAVERSAL_COST: f64 = 1.0;
 
-#[derive(Clone, Debug, Default)]
+#[derive(Clone, Debug)]
 pub struct Bvh {
     pub nodes: Vec<GpuBvhNode>,
     /// Primitive references in leaf order; bit 31 set for spheres.
     pub prim_refs: Vec<u32>,
     /// Deepest leaf (root = 0); traversal stacks need at most this many slots.
     pub depth: u32,
+    /// The scene's `render_scale`: boxes (and every renderer's copy of the
+    /// scene, see `Scene::in_render_space`) are in the scene scaled by it.
+    pub scale: f64,
+}
+
+impl Default for Bvh {
+    /// An empty tree, in the scene's own units.
+    fn default() -> Bvh {
+        Bvh {
+            nodes: Vec::new(),
+            prim_refs: Vec::new(),
+            depth: 0,
+            scale: 1.0,
+        }
+    }
 }
 
 struct Prim {
@@ -58,6 +73,8 @@ impl Bvh {
     /// the f32 slack spheres have: the shader computes its position at a
     /// time in f32, which can round past the f64 box.
     pub fn build_swept(scene: &Scene, span: f64) -> Bvh {
+        let scale = scene.render_scale();
+        let scene = &*scene.in_render_space(scale);
         let spheres = scene.spheres.iter().enumerate().map(|(i, s)| {
             let bounds = widen(s.swept_bounds(span));
             Prim {
@@ -79,7 +96,10 @@ impl Bvh {
             }
         });
         let mut prims: Vec<Prim> = spheres.chain(triangles).collect();
-        let mut bvh = Bvh::default();
+        let mut bvh = Bvh {
+            scale,
+            ..Bvh::default()
+        };
         if !prims.is_empty() {
             bvh.nodes.reserve(2 * prims.len());
             bvh.build_node(&mut prims, 0, 0);

@@ -106,6 +106,15 @@ impl fmt::Display for SceneInfo<'_> {
                 b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z
             )?;
         }
+        if self.bvh.scale != 1.0 {
+            writeln!(
+                f,
+                "render scale 2^{}: the geometry's extent {:e} is outside [2^-10, 2^14], so \
+                 every renderer works on the scene scaled by it (exact; the image does not change)",
+                self.bvh.scale.log2(),
+                s.extent()
+            )?;
+        }
         for (i, l) in s.lights.iter().enumerate() {
             let shape = match l.shape {
                 LightShape::Point => "point".to_string(),

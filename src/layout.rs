@@ -245,6 +245,7 @@ fn f4(v: glam::DVec3) -> [f32; 4] {
 
 impl GpuScene {
     pub fn pack(scene: &Scene, bvh: &Bvh) -> GpuScene {
+        let scene = &*scene.in_render_space(bvh.scale);
         let spheres = scene
             .spheres
             .iter()

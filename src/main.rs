@@ -9,6 +9,14 @@ use std::process::ExitCode;
 use clap::Parser;
 
 fn main() -> ExitCode {
+    // Output into a closed pipe (`glint info S | head -1`) ends the process
+    // quietly, as for other Unix tools, instead of panicking in println!.
+    #[cfg(unix)]
+    // SAFETY: restoring the default disposition of SIGPIPE before any thread
+    // starts; nothing else here relies on it being ignored.
+    unsafe {
+        libc::signal(libc::SIGPIPE, libc::SIG_DFL);
+    }
     // An interrupted image write leaves no `.part` file behind: a signal
     // ends the process without running drops, so the handler removes them.
     // 130 = 128 + SIGINT, the shell's convention.

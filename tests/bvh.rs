@@ -177,6 +177,7 @@ fn single_leaf(scene: &Scene, real: &Bvh) -> Bvh {
         nodes,
         prim_refs,
         depth: 0,
+        scale: real.scale,
     }
 }
 

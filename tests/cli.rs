@@ -528,3 +528,23 @@ fn an_interrupted_write_leaves_nothing_behind() {
         assert!(!d.path().join("out.jpg").exists());
     }
 }
+
+/// Output into a pipe that closes early (`glint info S | head -1`) ends
+/// glint quietly, never with a panic.
+#[test]
+fn a_closed_pipe_ends_quietly() {
+    for _ in 0..3 {
+        let mut child = Command::new(env!("CARGO_BIN_EXE_glint"))
+            .args(["info", &showcase()])
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .expect("start glint");
+        // Close the read end before glint writes its first line.
+        drop(child.stdout.take());
+        let out = child.wait_with_output().expect("wait");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!err.contains("panicked"), "{err}");
+        assert_ne!(out.status.code(), Some(101), "{err}");
+    }
+}

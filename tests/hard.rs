@@ -214,6 +214,69 @@ fn scale_invariance() {
     }
 }
 
+/// Far outside f32's comfortable range (where the textbook f32 renderer
+/// loses triangles from 1e13 and spheres from 1e20): the scene is brought
+/// back by a power of two (`Scene::render_scale`), so scaled by 1e-30 to
+/// 1e30 about the camera it renders its unscaled image on each f32 backend.
+#[test]
+fn extreme_scales_render_the_unscaled_image() {
+    let mut scenes = vec![(
+        "showcase".to_string(),
+        glint::scene::read_scene(&repo_path("scenes/showcase.scene")).expect("showcase parses"),
+    )];
+    if common::classic_dir().is_some() {
+        for name in common::CLASSIC {
+            scenes.push((
+                name.to_string(),
+                common::classic_scene(name).expect("classic"),
+            ));
+        }
+    }
+    let (w, h) = (160, 120);
+    let allowed = (5e-5 * f64::from(w * h)).floor() as usize;
+    for (name, scene) in &scenes {
+        assert_eq!(scene.render_scale(), 1.0, "{name} is rendered as it is");
+        let base_gpu = common::render_gpu(scene, w, h, common::WHITE);
+        let base_cpu = common::render_cpu(scene, w, h, Precision::F32, common::WHITE);
+        for factor in [1e-30, 1e-20, 1e-10, 1e10, 1e20, 1e30] {
+            let scaled = scene.scaled(factor);
+            assert_ne!(scaled.render_scale(), 1.0, "{name} at {factor:e}");
+            let label = format!("{name}-scaled-{factor:e}");
+            let cpu = common::render_cpu(&scaled, w, h, Precision::F32, common::WHITE);
+            let cmp = compare_framebuffers(&cpu, &base_cpu, 0.25).expect("same size");
+            common::assert_within(&format!("{label}-cpu"), &cpu, &base_cpu, &cmp, allowed);
+            if let (Some(base), Some(img)) =
+                (&base_gpu, common::render_gpu(&scaled, w, h, common::WHITE))
+            {
+                let cmp = compare_framebuffers(&img, base, 0.25).expect("same size");
+                common::assert_within(&format!("{label}-gpu"), &img, base, &cmp, allowed);
+            }
+        }
+    }
+}
+
+/// A primitive too small for f32 where it is gets named (no scaling helps
+/// it); the same primitive near the camera does not.
+#[test]
+fn primitives_f32_cannot_resolve_are_named() {
+    let text = |z: f64, r: f64| {
+        format!(
+            "2\namb: 0.1 0.1 0.1\nsphere pos: 0 0 {z} rad: {r:e} dif: 0.5 0.5 0.5 spe: 0 0 0 shi: 1\n\
+             light pos: 0 5 0 col: 1 1 1\n"
+        )
+    };
+    let far = glint::scene::parse_scene(text(-10.0, 10.0 * 2f64.powi(-22)).as_bytes(), "far")
+        .expect("parses");
+    let listed = far.unresolvable();
+    assert_eq!(listed.len(), 1, "{listed:?}");
+    assert!(
+        listed[0].starts_with("sphere 0 at (0e0, 0e0, -1e1)"),
+        "{listed:?}"
+    );
+    let near = glint::scene::parse_scene(text(-1e-5, 1e-6).as_bytes(), "near").expect("parses");
+    assert!(near.unresolvable().is_empty());
+}
+
 /// A ray with NaN in it (never formed by the renderer, but guarded against)
 /// ends traversal without a hit instead of looping.
 #[test]

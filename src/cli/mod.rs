@@ -147,4 +147,20 @@ pub fn print_warnings(scene: &glint::scene::Scene) {
             glint::scene::WARNINGS_KEPT
         );
     }
+    let small = scene.unresolvable();
+    if !small.is_empty() {
+        let shown = glint::scene::WARNINGS_KEPT.min(small.len());
+        eprintln!(
+            "warning: {} primitive(s) are smaller than f32 resolves where they are (under 2^-20 of \
+             their distance from the camera); the GPU and CPU f32 renders may miss or mis-shade \
+             them, `--backend cpu --precision f64` renders them right:",
+            small.len()
+        );
+        for s in &small[..shown] {
+            eprintln!("  {s}");
+        }
+        if small.len() > shown {
+            eprintln!("  and {} more", small.len() - shown);
+        }
+    }
 }

@@ -77,7 +77,9 @@ pub struct CpuScene<'a, R: Real> {
 
 impl<'a, R: Real> CpuScene<'a, R> {
     pub fn new(scene: &Scene, bvh: &'a Bvh, camera: &Camera, options: &CpuOptions) -> Self {
-        // f64 -> R once, as the GPU packing does for f32.
+        // f64 -> R once, as the GPU packing does for f32, in the BVH's
+        // render space.
+        let scene = &*scene.in_render_space(bvh.scale);
         let v = R::v3_from_f64;
         let effects = &options.effects;
         let features = Features::of(scene, effects);
