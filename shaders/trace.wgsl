@@ -15,7 +15,8 @@
 //  10  storage, rw        array<PixelState>        render_tile: each pixel's place in its work
 //  11  storage, rw        Status                   per pass: pixels unfinished, invocations cut
 //  12  storage, read      array<Material>          the distinct triangle-corner materials
-//  13.. storage, read     chunks 1-3 of triangles, normals, materials, nodes (SPLIT only)
+//  13  storage, read      array<u32>               light skips: surfaces through point lights
+//  14.. storage, read     chunks 1-3 of triangles, normals, materials, nodes (SPLIT only)
 //
 // Split lists. A list larger than one binding may hold (maxStorageBufferRange)
 // is bound as up to SPLIT_CHUNKS consecutive ranges of 2^frame.chunk_shift[j]
@@ -152,9 +153,10 @@ struct Light {
     color: vec3<f32>,
     radius: f32,
     edge_u: vec3<f32>,
-    _pad0: f32,
+    // Point lights: the run of `skips` naming the surfaces through the light.
+    skip_first: u32,
     edge_v: vec3<f32>,
-    _pad1: f32,
+    skip_count: u32,
     velocity: vec3<f32>,
     _pad2: f32,
 }
@@ -179,18 +181,19 @@ struct BvhNode {
 @group(0) @binding(10) var<storage, read_write> state: array<PixelState>;
 @group(0) @binding(11) var<storage, read_write> status: Status;
 @group(0) @binding(12) var<storage, read> materials: array<Material>;
-@group(0) @binding(13) var<storage, read> triangles1: array<Triangle>;
-@group(0) @binding(14) var<storage, read> triangles2: array<Triangle>;
-@group(0) @binding(15) var<storage, read> triangles3: array<Triangle>;
-@group(0) @binding(16) var<storage, read> normals1: array<TriangleNormals>;
-@group(0) @binding(17) var<storage, read> normals2: array<TriangleNormals>;
-@group(0) @binding(18) var<storage, read> normals3: array<TriangleNormals>;
-@group(0) @binding(19) var<storage, read> materials1: array<Material>;
-@group(0) @binding(20) var<storage, read> materials2: array<Material>;
-@group(0) @binding(21) var<storage, read> materials3: array<Material>;
-@group(0) @binding(22) var<storage, read> nodes1: array<BvhNode>;
-@group(0) @binding(23) var<storage, read> nodes2: array<BvhNode>;
-@group(0) @binding(24) var<storage, read> nodes3: array<BvhNode>;
+@group(0) @binding(13) var<storage, read> skips: array<u32>;
+@group(0) @binding(14) var<storage, read> triangles1: array<Triangle>;
+@group(0) @binding(15) var<storage, read> triangles2: array<Triangle>;
+@group(0) @binding(16) var<storage, read> triangles3: array<Triangle>;
+@group(0) @binding(17) var<storage, read> normals1: array<TriangleNormals>;
+@group(0) @binding(18) var<storage, read> normals2: array<TriangleNormals>;
+@group(0) @binding(19) var<storage, read> normals3: array<TriangleNormals>;
+@group(0) @binding(20) var<storage, read> materials1: array<Material>;
+@group(0) @binding(21) var<storage, read> materials2: array<Material>;
+@group(0) @binding(22) var<storage, read> materials3: array<Material>;
+@group(0) @binding(23) var<storage, read> nodes1: array<BvhNode>;
+@group(0) @binding(24) var<storage, read> nodes2: array<BvhNode>;
+@group(0) @binding(25) var<storage, read> nodes3: array<BvhNode>;
 
 // Loop iterations this invocation has run (every loop counts, as drivers
 // count them), and whether any of its loops ended without its own exit.
@@ -251,6 +254,10 @@ override MOTION_BLUR: bool = true;
 override MULTISAMPLE: bool = true;
 // Big lists span several bindings (see "Split lists" above).
 override SPLIT: bool = false;
+// Some point light lies on a surface: shadow rays towards it treat the
+// surfaces through it by the rule of src/lights_on_surfaces.rs.
+override LIGHT_SKIPS: bool = false;
+const TANGENT_BAND: f32 = 0.000244140625;
 const SPLIT_CHUNKS: u32 = 4u;
 const LIGHT_POINT: u32 = 0u;
 const LIGHT_SPHERE: u32 = 1u;
@@ -614,6 +621,48 @@ fn light_at(index: u32, time: f32) -> Light {
     return light;
 }
 
+// The run of `skips` (first, count) for the shadow ray being traced; (0, 0)
+// for every other ray.
+var<private> skip_range: vec2<u32>;
+
+fn skipped(prim: u32) -> bool {
+    var found = false;
+    var k = 0u;
+    for (; k < skip_range.y; k++) {
+        work += 1u;
+        if (skips[skip_range.x + k] == prim) {
+            found = true;
+        }
+    }
+    if (k < skip_range.y) {
+        cut = true;
+    }
+    return found;
+}
+
+// For a sphere through the light a shadow ray ends at: the crossing that is
+// not the light's own, when it lies in (0, 1 - TANGENT_BAND), else T_INF.
+fn hit_sphere_through_end(ray: Ray, s: Sphere) -> f32 {
+    let f = ray.origin - s.center;
+    let a = dot(ray.dir, ray.dir);
+    let b = -dot(f, ray.dir);
+    let c = dot(f, f) - s.radius * s.radius;
+    let l = f + (b / a) * ray.dir;
+    let disc = s.radius * s.radius - dot(l, l);
+    if (disc < 0.0) {
+        return T_INF;
+    }
+    let q = b + sign_nonzero(b) * sqrt(a * disc);
+    let t0 = c / q;
+    let t1 = q / a;
+    // The root nearer 1 is the light's own.
+    let other = select(t1, t0, abs(t0 - 1.0) > abs(t1 - 1.0));
+    if (other > 0.0 && other < 1.0 - TANGENT_BAND) {
+        return other;
+    }
+    return T_INF;
+}
+
 // Tests the leaf's primitives; `any_hit` returns at the first hit in range.
 fn hit_leaf(ray: Ray, node: BvhNode, best: ptr<function, Hit>, any_hit: bool) -> bool {
     var i = 0u;
@@ -621,6 +670,20 @@ fn hit_leaf(ray: Ray, node: BvhNode, best: ptr<function, Hit>, any_hit: bool) ->
         work += 1u;
         let prim = prim_refs[node.right_or_first + i];
         let index = prim & ~SPHERE_BIT;
+        if (LIGHT_SKIPS) {
+            if (any_hit && skipped(prim)) {
+                // A surface through the light: triangles never block it, a
+                // sphere only with its other crossing.
+                if ((prim & SPHERE_BIT) != 0u) {
+                    let t = hit_sphere_through_end(ray, sphere_at(index, ray.time));
+                    if (t < (*best).t) {
+                        *best = Hit(t, prim, 0.0, 0.0);
+                        return true;
+                    }
+                }
+                continue;
+            }
+        }
         if ((prim & SPHERE_BIT) != 0u) {
             if (SPHERES) {
                 let t = hit_sphere(ray, sphere_at(index, ray.time), (*best).t);
@@ -834,12 +897,20 @@ struct LightTerm {
 // light * (kd * max(L.N, 0) + ks * max(R.V, 0)^shininess) if nothing lies
 // between the point and the light at `light_pos`. The specular term is not
 // gated by L.N.
-fn point_term(sp: SurfacePoint, view: vec3<f32>, light_pos: vec3<f32>, color: vec3<f32>, time: f32) -> LightTerm {
+// `skip`: the run of `skips` naming the surfaces through light_pos when it
+// is a point light's position, else (0, 0).
+fn point_term(sp: SurfacePoint, view: vec3<f32>, light_pos: vec3<f32>, color: vec3<f32>, time: f32, skip: vec2<u32>) -> LightTerm {
     let to_light = light_pos - sp.p;
     // Leave from the side of the surface that faces the light.
     let side = select(-sp.ng, sp.ng, dot(sp.ng, to_light) >= 0.0);
     let origin = offset_ray(sp.p, side, sp.scale);
+    if (LIGHT_SKIPS) {
+        skip_range = skip;
+    }
     var term = LightTerm(origin, occluder(make_ray(origin, light_pos - origin, time)), 0.0, 0.0, 0.0, vec3(0.0));
+    if (LIGHT_SKIPS) {
+        skip_range = vec2(0u);
+    }
     if (term.blocker.prim != NO_HIT) {
         return term;
     }
@@ -902,7 +973,7 @@ fn area_term(sp: SurfacePoint, view: vec3<f32>, light: Light, stream: u32, key: 
         let jitter = vec2(unit_float(rng(key.pixel, key.sample, stream, 2u * m)),
                           unit_float(rng(key.pixel, key.sample, stream, 2u * m + 1u)));
         let uv = stratified_2d(m, n, rotation, jitter);
-        let term = point_term(sp, view, light_sample_point(light, sp.p, uv), color, key.time);
+        let term = point_term(sp, view, light_sample_point(light, sp.p, uv), color, key.time, vec2(0u));
         total.contribution += term.contribution;
         total.origin = term.origin;
         if (term.blocker.prim != NO_HIT) {
@@ -935,7 +1006,7 @@ fn light_term(sp: SurfacePoint, view: vec3<f32>, i: u32, bounce: u32, key: Sampl
             return area_term(sp, view, light, stream, key);
         }
     }
-    return point_term(sp, view, light.position, light.color, key.time);
+    return point_term(sp, view, light.position, light.color, key.time, vec2(light.skip_first, light.skip_count));
 }
 
 struct Shading {
@@ -1040,7 +1111,7 @@ fn shade_step(st: ptr<function, PixelState>, sp: SurfacePoint, view: vec3<f32>, 
             let jitter = vec2(unit_float(rng(key.pixel, key.sample, stream, 2u * m)),
                               unit_float(rng(key.pixel, key.sample, stream, 2u * m + 1u)));
             let uv = stratified_2d(m, n, rotation, jitter);
-            let term = point_term(sp, view, light_sample_point(light, sp.p, uv), color, key.time);
+            let term = point_term(sp, view, light_sample_point(light, sp.p, uv), color, key.time, vec2(0u));
             (*st).area += term.contribution;
             (*st).area_sample = m + 1u;
             if (m + 1u >= n) {
@@ -1052,7 +1123,7 @@ fn shade_step(st: ptr<function, PixelState>, sp: SurfacePoint, view: vec3<f32>, 
             return;
         }
     }
-    let term = point_term(sp, view, light.position, light.color, key.time);
+    let term = point_term(sp, view, light.position, light.color, key.time, vec2(light.skip_first, light.skip_count));
     (*st).shade += term.contribution;
     (*st).light = i + 1u;
 }

@@ -491,7 +491,7 @@ pub fn run_specialize(
         "| scene | feature set | SPIR-V words spec. / generic | build spec. | build generic | render spec. | render generic | generic / spec. |"
     );
     let _ = writeln!(out, "|---|---|---:|---:|---:|---:|---:|---:|");
-    let generic_words = shader::spirv(Methods::Robust, Features::ALL, false)
+    let generic_words = shader::spirv(Methods::Robust, Features::ALL, Default::default())
         .map_err(GpuError::from)?
         .len();
     for path in &options.scenes {
@@ -526,7 +526,7 @@ pub fn run_specialize(
         }
         let [bs, bg] = builds.map(|b| Stat::of(b).expect("3 builds").median);
         let [rs, rg] = renders.map(|r| Stat::of(r).expect("repeat >= 1").median);
-        let words = shader::spirv(Methods::Robust, features, false)
+        let words = shader::spirv(Methods::Robust, features, Default::default())
             .map_err(GpuError::from)?
             .len();
         let line = format!(

@@ -32,6 +32,9 @@ pub struct Bvh {
     /// The scene's `render_scale`: boxes (and every renderer's copy of the
     /// scene, see `Scene::in_render_space`) are in the scene scaled by it.
     pub scale: f64,
+    /// Per light, the primitives whose surface passes through it, which its
+    /// shadow rays treat by the rule in `lights_on_surfaces`.
+    pub surfaces_at_lights: Vec<Vec<u32>>,
 }
 
 impl Default for Bvh {
@@ -42,6 +45,7 @@ impl Default for Bvh {
             prim_refs: Vec::new(),
             depth: 0,
             scale: 1.0,
+            surfaces_at_lights: Vec::new(),
         }
     }
 }
@@ -105,6 +109,7 @@ impl Bvh {
             bvh.build_node(&mut prims, 0, 0);
         }
         bvh.prim_refs = prims.iter().map(|p| p.reference).collect();
+        bvh.surfaces_at_lights = crate::lights_on_surfaces::find(scene, &bvh);
         bvh
     }
 

@@ -179,7 +179,7 @@ pub const SPLIT_LISTS: [(usize, &str); 4] = [
 /// Bindings a split list may span (the shader declares that many).
 pub const SPLIT_CHUNKS: usize = 4;
 /// The first binding of the extra chunks.
-pub const SPLIT_FIRST: usize = 13;
+pub const SPLIT_FIRST: usize = 14;
 
 /// `GpuLight::kind` values.
 pub const LIGHT_POINT: u32 = 0;
@@ -197,9 +197,11 @@ pub struct GpuLight {
     pub radius: f32,
     /// Rectangle lights only: the two edges, centred on `position`.
     pub edge_u: [f32; 3],
-    pub _pad0: f32,
+    /// Point lights: where the surfaces through the light start in the skip
+    /// list (binding 13), and how many (`lights_on_surfaces`).
+    pub skip_first: u32,
     pub edge_v: [f32; 3],
-    pub _pad1: f32,
+    pub skip_count: u32,
     pub velocity: [f32; 3],
     pub _pad2: f32,
 }
@@ -229,6 +231,9 @@ pub struct GpuScene {
     pub lights: Vec<GpuLight>,
     pub nodes: Vec<GpuBvhNode>,
     pub prim_refs: Vec<u32>,
+    /// The surfaces through point lights, each light's run at its
+    /// `skip_first`; empty when no light lies on a surface.
+    pub skips: Vec<u32>,
     /// xyz = velocity of each sphere, then each triangle; empty when
     /// nothing moves.
     pub velocities: Vec<[f32; 4]>,
@@ -292,11 +297,18 @@ impl GpuScene {
                 n: *n.as_flattened().first_chunk().expect("9 values"),
             });
         }
+        let mut skips = Vec::new();
         let lights = scene
             .lights
             .iter()
-            .map(|l| {
+            .enumerate()
+            .map(|(i, l)| {
+                let through = bvh.surfaces_at_lights.get(i).map_or(&[][..], Vec::as_slice);
+                let skip_first = skips.len() as u32;
+                skips.extend_from_slice(through);
                 let mut g = GpuLight {
+                    skip_first,
+                    skip_count: through.len() as u32,
                     position: f3(l.position),
                     color: f3(l.color),
                     velocity: f3(l.velocity),
@@ -332,13 +344,14 @@ impl GpuScene {
             lights,
             nodes: bvh.nodes.clone(),
             prim_refs: bvh.prim_refs.clone(),
+            skips,
             velocities,
             ambient: f3(scene.ambient),
         }
     }
 
     /// Bytes of each list, as uploaded.
-    pub fn list_bytes(&self) -> [u64; 8] {
+    pub fn list_bytes(&self) -> [u64; 9] {
         let b = |len: usize, size: usize| (len.max(1) * size) as u64;
         use std::mem::size_of;
         [
@@ -350,6 +363,7 @@ impl GpuScene {
             b(self.nodes.len(), size_of::<GpuBvhNode>()),
             b(self.prim_refs.len(), 4),
             b(self.velocities.len(), 16),
+            b(self.skips.len(), 4),
         ]
     }
 

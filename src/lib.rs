@@ -20,6 +20,7 @@ pub mod gpu;
 pub mod hard;
 pub mod info;
 pub mod layout;
+pub mod lights_on_surfaces;
 pub mod memory;
 pub mod methods;
 pub mod probe;

@@ -178,6 +178,7 @@ fn single_leaf(scene: &Scene, real: &Bvh) -> Bvh {
         prim_refs,
         depth: 0,
         scale: real.scale,
+        surfaces_at_lights: real.surfaces_at_lights.clone(),
     }
 }
 

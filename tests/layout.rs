@@ -107,7 +107,7 @@ fn structs_match() {
         m,
         "Light",
         GpuLight,
-        [position, kind, color, radius, edge_u, _pad0, edge_v, _pad1, velocity, _pad2]
+        [position, kind, color, radius, edge_u, skip_first, edge_v, skip_count, velocity, _pad2]
     );
     check_struct!(m, "BvhNode", GpuBvhNode, [min, right_or_first, max, count]);
 }
@@ -127,6 +127,7 @@ fn bindings_match_the_pipeline_and_array_strides_match_rust() {
         (9, 16),
         (10, size_of::<GpuPixelState>()),
         (12, size_of::<GpuMaterial>()),
+        (13, size_of::<u32>()),
     ];
     // A split list's extra chunks hold what its first binding holds.
     for (j, &(first, _)) in SPLIT_LISTS.iter().enumerate() {

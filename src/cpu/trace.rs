@@ -59,6 +59,8 @@ pub struct CpuScene<'a, R: Real> {
     pub lights: Vec<Light<R>>,
     pub nodes: &'a [GpuBvhNode],
     pub prim_refs: &'a [u32],
+    /// Per light, the surfaces through it (`lights_on_surfaces`).
+    pub surfaces_at_lights: &'a [Vec<u32>],
     pub ambient: R::V3,
     pub background: R::V3,
     pub half_extent: [R; 2],
@@ -141,6 +143,7 @@ impl<'a, R: Real> CpuScene<'a, R> {
                 })
                 .collect(),
             nodes: &bvh.nodes,
+            surfaces_at_lights: &bvh.surfaces_at_lights,
             prim_refs: &bvh.prim_refs,
             ambient: v(scene.ambient),
             background: R::v3_from_f32(options.background),
@@ -292,6 +295,35 @@ pub fn hit_sphere<R: Real>(ray: &Ray<R>, s: &Sphere<R>, t_max: R) -> R {
     R::T_INF
 }
 
+/// For a sphere through the light a shadow ray ends at (`skip`): the crossing
+/// that is not the light's own, when it lies in (0, 1 - TANGENT_BAND), else
+/// T_INF (the shader's `hit_sphere_through_end`).
+pub fn hit_sphere_through_end<R: Real>(ray: &Ray<R>, s: &Sphere<R>) -> R {
+    let f = ray.origin - s.center;
+    let a = R::dot(ray.dir, ray.dir);
+    let b = -R::dot(f, ray.dir);
+    let c = R::dot(f, f) - s.radius * s.radius;
+    let l = f + ray.dir * (b / a);
+    let disc = s.radius * s.radius - R::dot(l, l);
+    if disc < R::ZERO {
+        return R::T_INF;
+    }
+    let q = b + b.sign_nonzero() * (a * disc).sqrt();
+    let t0 = c / q;
+    let t1 = q / a;
+    // The root nearer 1 is the light's own.
+    let other = if (t0 - R::ONE).abs() > (t1 - R::ONE).abs() {
+        t0
+    } else {
+        t1
+    };
+    if other > R::ZERO && other < R::ONE - R::from_f64(crate::lights_on_surfaces::TANGENT_BAND) {
+        other
+    } else {
+        R::T_INF
+    }
+}
+
 pub fn hit_sphere_naive<R: Real>(ray: &Ray<R>, s: &Sphere<R>, t_max: R) -> R {
     let oc = ray.origin - s.center;
     let a = R::dot(ray.dir, ray.dir);
@@ -385,12 +417,30 @@ fn hit_leaf<R: Real>(
     node: &GpuBvhNode,
     best: &mut Hit<R>,
     any_hit: bool,
+    skip: &[u32],
 ) -> bool {
     let first = node.right_or_first as usize;
     // The shader branches on ROBUST inside hit_sphere and hit_triangle.
     let robust = scene.methods == Methods::Robust;
     for &prim in &scene.prim_refs[first..first + node.count as usize] {
         let index = (prim & !SPHERE_BIT) as usize;
+        if any_hit && skip.contains(&prim) {
+            // A surface through the light: triangles never block it, a
+            // sphere only with its other crossing.
+            if prim & SPHERE_BIT != 0 {
+                let t = hit_sphere_through_end(ray, &sphere_at(scene, index, ray.time));
+                if t < best.t {
+                    *best = Hit {
+                        t,
+                        prim,
+                        b1: R::ZERO,
+                        b2: R::ZERO,
+                    };
+                    return true;
+                }
+            }
+            continue;
+        }
         if prim & SPHERE_BIT != 0 {
             let sphere = &sphere_at(scene, index, ray.time);
             let t = if robust {
@@ -427,7 +477,14 @@ fn hit_leaf<R: Real>(
     false
 }
 
-pub fn traverse<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>, t_max: R, any_hit: bool) -> Hit<R> {
+/// `skip`: with `any_hit`, the surfaces through the light the ray ends at.
+pub fn traverse<R: Real>(
+    scene: &CpuScene<R>,
+    ray: &Ray<R>,
+    t_max: R,
+    any_hit: bool,
+    skip: &[u32],
+) -> Hit<R> {
     let mut best = Hit {
         t: t_max,
         prim: NO_HIT,
@@ -444,7 +501,7 @@ pub fn traverse<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>, t_max: R, any_hit: b
     loop {
         let node = &nodes[index];
         if node.count > 0 {
-            if hit_leaf(scene, ray, node, &mut best, any_hit) {
+            if hit_leaf(scene, ray, node, &mut best, any_hit, skip) {
                 return best;
             }
             if sp == 0 {
@@ -479,11 +536,12 @@ pub fn traverse<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>, t_max: R, any_hit: b
 }
 
 pub fn trace_closest<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>) -> Hit<R> {
-    traverse(scene, ray, R::T_INF, false)
+    traverse(scene, ray, R::T_INF, false, &[])
 }
 
-pub fn occluder<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>) -> Hit<R> {
-    traverse(scene, ray, R::ONE, true)
+/// `skip`: the surfaces through the light (`lights_on_surfaces`).
+pub fn occluder<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>, skip: &[u32]) -> Hit<R> {
+    traverse(scene, ray, R::ONE, true, skip)
 }
 
 pub fn offset_ray<R: Real>(scene: &CpuScene<R>, p: R::V3, n: R::V3, scale: R::V3) -> R::V3 {
@@ -574,6 +632,9 @@ pub struct LightTerm<R: Real> {
     pub contribution: R::V3,
 }
 
+/// `skip`: the surfaces through `target` when it is a point light's
+/// position (`lights_on_surfaces`), else empty.
+#[allow(clippy::too_many_arguments)]
 pub fn point_term<R: Real>(
     scene: &CpuScene<R>,
     sp: &SurfacePoint<R>,
@@ -581,6 +642,7 @@ pub fn point_term<R: Real>(
     target: R::V3,
     color: R::V3,
     time: R,
+    skip: &[u32],
 ) -> LightTerm<R> {
     let to_light = target - sp.p;
     let side = if R::dot(sp.ng, to_light) >= R::ZERO {
@@ -592,7 +654,7 @@ pub fn point_term<R: Real>(
     let zero = R::v3(R::ZERO, R::ZERO, R::ZERO);
     let mut term = LightTerm {
         origin,
-        blocker: occluder(scene, &make_ray(origin, target - origin, time)),
+        blocker: occluder(scene, &make_ray(origin, target - origin, time), skip),
         ln: R::ZERO,
         rv: R::ZERO,
         spec: R::ZERO,
@@ -674,7 +736,7 @@ pub fn area_term<R: Real>(
         let jitter = [unit_float(draw(2 * m)), unit_float(draw(2 * m + 1))];
         let uv = stratified_2d(m, n, rotation, jitter);
         let target = light_sample_point(light, sp.p, uv);
-        let term = point_term(scene, sp, view, target, color, key.time);
+        let term = point_term(scene, sp, view, target, color, key.time, &[]);
         total.contribution = total.contribution + term.contribution;
         total.origin = term.origin;
         if term.blocker.prim != NO_HIT {
@@ -709,7 +771,11 @@ pub fn light_term<R: Real>(
             .wrapping_add(i as u32);
         return area_term(scene, sp, view, &light, stream, key);
     }
-    point_term(scene, sp, view, light.position, light.color, key.time)
+    let skip = scene
+        .surfaces_at_lights
+        .get(i)
+        .map_or(&[][..], Vec::as_slice);
+    point_term(scene, sp, view, light.position, light.color, key.time, skip)
 }
 
 #[derive(Clone, Copy, Debug)]

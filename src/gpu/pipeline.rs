@@ -44,12 +44,15 @@ pub struct PipelineKey {
     pub features: Features,
     /// Big lists span several bindings: the layout with all of `BINDINGS`.
     pub split: bool,
+    /// Some light lies on a surface (`lights_on_surfaces`): the shader that
+    /// reads the skip lists.
+    pub light_skips: bool,
     pub kernel: Kernel,
 }
 
 /// Descriptor types of bindings 0.. of group 0, in the shader's order; the
 /// plain layout has the first `PLAIN_BINDINGS`, the split one all of them.
-pub const BINDINGS: [vk::DescriptorType; 25] = [
+pub const BINDINGS: [vk::DescriptorType; 26] = [
     vk::DescriptorType::UNIFORM_BUFFER, // frame
     vk::DescriptorType::UNIFORM_BUFFER, // tile
     vk::DescriptorType::STORAGE_BUFFER, // spheres
@@ -63,6 +66,7 @@ pub const BINDINGS: [vk::DescriptorType; 25] = [
     vk::DescriptorType::STORAGE_BUFFER, // pixel state
     vk::DescriptorType::STORAGE_BUFFER, // status
     vk::DescriptorType::STORAGE_BUFFER, // materials
+    vk::DescriptorType::STORAGE_BUFFER, // light skips
     // Chunks 1-3 of triangles, normals, materials and nodes
     // (layout::SPLIT_LISTS).
     vk::DescriptorType::STORAGE_BUFFER,
@@ -79,7 +83,7 @@ pub const BINDINGS: [vk::DescriptorType; 25] = [
     vk::DescriptorType::STORAGE_BUFFER,
 ];
 /// Bindings of the plain layout (no split lists).
-pub const PLAIN_BINDINGS: usize = 13;
+pub const PLAIN_BINDINGS: usize = 14;
 
 /// The bindings of the plain (`split` false) or split layout.
 pub fn bindings(split: bool) -> &'static [vk::DescriptorType] {
@@ -187,7 +191,11 @@ impl TracePipeline {
     }
 
     fn build(&self, key: PipelineKey) -> Result<vk::Pipeline, GpuError> {
-        let words = super::shader::spirv(key.methods, key.features, key.split)?;
+        let variant = super::shader::Variant {
+            split: key.split,
+            light_skips: key.light_skips,
+        };
+        let words = super::shader::spirv(key.methods, key.features, variant)?;
         let device = &self.shared.device;
         // SAFETY: valid create infos on a live device; the module is destroyed
         // once the pipeline exists, the pipeline is owned by `self`.

@@ -41,11 +41,12 @@ use crate::probe::{PathRecord, ProbeImage};
 use crate::scene::Effects;
 use crate::timing::Timings;
 
-fn key(options: &GpuRenderOptions, kernel: Kernel, split: bool) -> PipelineKey {
+fn key(options: &GpuRenderOptions, kernel: Kernel, split: bool, light_skips: bool) -> PipelineKey {
     PipelineKey {
         methods: options.methods,
         features: options.features,
         split,
+        light_skips,
         kernel,
     }
 }
@@ -158,6 +159,7 @@ const B_OUTPUT: usize = 8;
 const B_STATE: usize = 10;
 const B_STATUS: usize = 11;
 const B_MATERIALS: usize = 12;
+const B_SKIPS: usize = 13;
 /// A cut tile is redone with its budget divided by this.
 const BUDGET_BACKOFF: u32 = 8;
 
@@ -361,7 +363,8 @@ impl GpuRenderer {
         options: &GpuRenderOptions,
         kernel: Kernel,
     ) -> Result<Duration, GpuError> {
-        self.pipeline.measure_build(key(options, kernel, false))
+        self.pipeline
+            .measure_build(key(options, kernel, false, false))
     }
 
     /// Builds (or finds in the cache) the pipeline `options` call for;
@@ -371,7 +374,7 @@ impl GpuRenderer {
         options: &GpuRenderOptions,
         kernel: Kernel,
     ) -> Result<Duration, GpuError> {
-        Ok(self.pipeline.get(key(options, kernel, false))?.1)
+        Ok(self.pipeline.get(key(options, kernel, false, false))?.1)
     }
 
     /// Renders `scene` as seen by `camera`. `progress(tiles_done, tiles_total)`
@@ -582,6 +585,7 @@ impl GpuRenderer {
             upload(7, "primitive refs", padded(&scene.prim_refs)),
             upload(9, "velocities", padded(&scene.velocities)),
             upload(B_MATERIALS, "materials", padded(&scene.materials)),
+            upload(B_SKIPS, "light skips", padded(&scene.skips)),
         ];
         let split = self.check_limits(
             &uploads,
@@ -590,7 +594,10 @@ impl GpuRenderer {
         )?;
         frame.chunk_shift = split.shifts;
         uploads[0].bytes = bytemuck::bytes_of(&frame).to_vec().into();
-        let (pipeline, build_time) = self.pipeline.get(key(options, kernel, split.split))?;
+        let light_skips = !scene.skips.is_empty();
+        let (pipeline, build_time) =
+            self.pipeline
+                .get(key(options, kernel, split.split, light_skips))?;
         if !build_time.is_zero() {
             timings.add("pipeline", build_time);
         }
@@ -763,6 +770,7 @@ impl GpuRenderer {
             (7, "primitive refs"),
             (9, "velocities"),
             (B_MATERIALS, "materials"),
+            (B_SKIPS, "light skips"),
         ]
         .into_iter()
         .map(|(binding, name)| {

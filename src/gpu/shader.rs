@@ -53,16 +53,26 @@ fn validator() -> Validator {
     Validator::new(ValidationFlags::all(), Capabilities::empty())
 }
 
+/// What the packed data, not the scene's effects, asks of the shader.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub struct Variant {
+    /// Big lists span several bindings (`layout::SPLIT_LISTS`).
+    pub split: bool,
+    /// Some point light lies on a surface (`lights_on_surfaces`).
+    pub light_skips: bool,
+}
+
 /// The override values of a variant, as `process_overrides` takes them.
 pub fn pipeline_constants(
     methods: Methods,
     features: Features,
-    split: bool,
+    variant: Variant,
 ) -> naga::back::PipelineConstants {
     let mut constants = naga::back::PipelineConstants::default();
     let flag = |on: bool| if on { 1.0 } else { 0.0 };
     constants.insert("ROBUST".into(), flag(methods == Methods::Robust));
-    constants.insert("SPLIT".into(), flag(split));
+    constants.insert("SPLIT".into(), flag(variant.split));
+    constants.insert("LIGHT_SKIPS".into(), flag(variant.light_skips));
     for (name, on) in features.overrides() {
         constants.insert(name.into(), flag(on));
     }
@@ -70,24 +80,29 @@ pub fn pipeline_constants(
 }
 
 /// The module with its overrides resolved and dead feature branches removed,
-/// validated. `split`: big lists span several bindings (`layout::SPLIT_LISTS`).
+/// validated.
 pub fn specialize(
     methods: Methods,
     features: Features,
-    split: bool,
+    variant: Variant,
 ) -> Result<(Module, ModuleInfo), ShaderError> {
     let (module, info) = parsed()?;
     let what = format!(
-        "{} methods, features {}{}",
+        "{} methods, features {}{}{}",
         methods.name(),
         features.label(),
-        if split { ", split lists" } else { "" }
+        if variant.split { ", split lists" } else { "" },
+        if variant.light_skips {
+            ", lights on surfaces"
+        } else {
+            ""
+        }
     );
     let fail = |message: String| ShaderError {
         what: what.clone(),
         message,
     };
-    let constants = pipeline_constants(methods, features, split);
+    let constants = pipeline_constants(methods, features, variant);
     let (resolved, _) =
         naga::back::pipeline_constants::process_overrides(module, info, None, &constants)
             .map_err(|e| fail(format!("resolving overrides: {e}")))?;
@@ -110,8 +125,12 @@ pub fn specialize(
 }
 
 /// SPIR-V words of the specialised shader, all entry points.
-pub fn spirv(methods: Methods, features: Features, split: bool) -> Result<Vec<u32>, ShaderError> {
-    let (module, info) = specialize(methods, features, split)?;
+pub fn spirv(
+    methods: Methods,
+    features: Features,
+    variant: Variant,
+) -> Result<Vec<u32>, ShaderError> {
+    let (module, info) = specialize(methods, features, variant)?;
     let options = spv::Options {
         // SPIR-V 1.0 runs on every Vulkan 1.0 device, MoltenVK included.
         lang_version: (1, 0),
@@ -267,7 +286,7 @@ mod tests {
             triangles: true,
             ..Features::default()
         };
-        let (m, _) = specialize(Methods::Robust, plain, false).unwrap();
+        let (m, _) = specialize(Methods::Robust, plain, Variant::default()).unwrap();
         let names = function_names(&m);
         for gone in [
             "area_term",
@@ -279,7 +298,7 @@ mod tests {
         ] {
             assert!(!names.iter().any(|n| n == gone), "{gone} in {names:?}");
         }
-        let (all, _) = specialize(Methods::Robust, Features::ALL, false).unwrap();
+        let (all, _) = specialize(Methods::Robust, Features::ALL, Variant::default()).unwrap();
         let names = function_names(&all);
         for kept in [
             "area_term",
@@ -310,11 +329,15 @@ mod tests {
     #[test]
     fn only_a_split_shader_reads_the_extra_chunks() {
         let chunk = |n: &String| n.ends_with(['1', '2', '3']);
-        let (plain, _) = specialize(Methods::Robust, Features::ALL, false).unwrap();
+        let (plain, _) = specialize(Methods::Robust, Features::ALL, Variant::default()).unwrap();
         let used = globals_used(&plain);
         assert!(used.iter().any(|n| n == "triangles"), "{used:?}");
         assert!(!used.iter().any(chunk), "{used:?}");
-        let (split, _) = specialize(Methods::Robust, Features::ALL, true).unwrap();
+        let variant = Variant {
+            split: true,
+            light_skips: false,
+        };
+        let (split, _) = specialize(Methods::Robust, Features::ALL, variant).unwrap();
         let used = globals_used(&split);
         for name in ["triangles3", "normals3", "materials3", "nodes3"] {
             assert!(used.iter().any(|n| n == name), "{name} unused: {used:?}");
@@ -333,8 +356,12 @@ mod tests {
                 multisample: bits & 32 != 0,
             };
             for methods in Methods::ALL {
-                for split in [false, true] {
-                    spirv(methods, f, split).unwrap_or_else(|e| panic!("{e}"));
+                for bits in 0..4 {
+                    let variant = Variant {
+                        split: bits & 1 != 0,
+                        light_skips: bits & 2 != 0,
+                    };
+                    spirv(methods, f, variant).unwrap_or_else(|e| panic!("{e}"));
                 }
             }
         }

@@ -525,6 +525,39 @@ fn degenerate_lights() -> Vec<Case> {
         &[Nan],
     );
 
+    // A floor of 4 x 4 quads with lights in a triangle, on a shared edge and
+    // at a vertex six triangles share, a wall with a light in its plane, and
+    // a floating sphere with a light on its top and one on its side.
+    let mut tris = Vec::new();
+    for i in 0..4 {
+        for j in 0..4 {
+            let (x0, z0) = (-4.0 + 2.0 * f64::from(i), -10.0 + 2.0 * f64::from(j));
+            tris.extend(ground(-1.0, [x0, x0 + 2.0], [z0, z0 + 2.0], m));
+        }
+    }
+    tris.extend(quad(
+        DVec3::new(-4.0, -1.0, -10.0),
+        DVec3::new(4.0, -1.0, -10.0),
+        DVec3::new(4.0, 3.0, -10.0),
+        DVec3::new(-4.0, 3.0, -10.0),
+        m,
+    ));
+    let spheres = vec![sphere(DVec3::new(1.0, 0.5, -6.0), 0.7, m)];
+    let lights = vec![
+        light(DVec3::new(-2.5, -1.0, -4.5), 0.25),
+        light(DVec3::new(0.0, -1.0, -7.0), 0.25),
+        light(DVec3::new(-2.0, -1.0, -6.0), 0.25),
+        light(DVec3::new(-3.0, 1.0, -10.0), 0.25),
+        light(DVec3::new(1.0, 1.2, -6.0), 0.25),
+        light(DVec3::new(1.7, 0.5, -6.0), 0.25),
+    ];
+    let on_surfaces = case(
+        "lights_on_surfaces_ii",
+        "lights in a floor triangle, on a shared edge, at a shared vertex, in a wall, on a sphere's top and side",
+        scene(0.05, lights, spheres, tris),
+        &[Nan, Acne, Leak, Speckle],
+    );
+
     let inside = case(
         "camera_inside_sphere",
         "the camera inside a sphere, another sphere and the light inside too",
@@ -591,7 +624,7 @@ fn degenerate_lights() -> Vec<Case> {
         ),
         &[Nan],
     );
-    vec![lights_case, inside, shininess, hundred]
+    vec![lights_case, on_surfaces, inside, shininess, hundred]
 }
 
 fn degenerate_triangles() -> Case {
