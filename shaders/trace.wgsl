@@ -406,14 +406,11 @@ fn hit_aabb(ray: Ray, bmin: vec3<f32>, bmax: vec3<f32>, t_max: f32) -> f32 {
     return select(T_INF, t_near, t_near <= t_far);
 }
 
-// Nearest t in (0, t_max) where the ray meets the sphere, or T_INF.
-// Ray Tracing Gems ch. 7 (Haines et al.): the discriminant from the
-// perpendicular distance to the centre and the stable root pair avoid
-// catastrophic cancellation for small or distant spheres.
-fn hit_sphere(ray: Ray, s: Sphere, t_max: f32) -> f32 {
-    if (!ROBUST) {
-        return hit_sphere_naive(ray, s, t_max);
-    }
+// Both t where the ray's line meets the sphere (unordered), or T_INF twice
+// when it misses. Ray Tracing Gems ch. 7 (Haines et al.): the discriminant
+// from the perpendicular distance to the centre and the stable root pair
+// avoid catastrophic cancellation for small or distant spheres.
+fn sphere_roots(ray: Ray, s: Sphere) -> vec2<f32> {
     let f = ray.origin - s.center;
     let a = dot(ray.dir, ray.dir);
     let b = -dot(f, ray.dir);
@@ -421,13 +418,20 @@ fn hit_sphere(ray: Ray, s: Sphere, t_max: f32) -> f32 {
     let l = f + (b / a) * ray.dir;
     let disc = s.radius * s.radius - dot(l, l);
     if (disc < 0.0) {
-        return T_INF;
+        return vec2(T_INF);
     }
     let q = b + sign_nonzero(b) * sqrt(a * disc);
-    let t0 = c / q;
-    let t1 = q / a;
-    let t_lo = min(t0, t1);
-    let t_hi = max(t0, t1);
+    return vec2(c / q, q / a);
+}
+
+// Nearest t in (0, t_max) where the ray meets the sphere, or T_INF.
+fn hit_sphere(ray: Ray, s: Sphere, t_max: f32) -> f32 {
+    if (!ROBUST) {
+        return hit_sphere_naive(ray, s, t_max);
+    }
+    let roots = sphere_roots(ray, s);
+    let t_lo = min(roots.x, roots.y);
+    let t_hi = max(roots.x, roots.y);
     if (t_lo > 0.0 && t_lo < t_max) {
         return t_lo;
     }
@@ -643,20 +647,9 @@ fn skipped(prim: u32) -> bool {
 // For a sphere through the light a shadow ray ends at: the crossing that is
 // not the light's own, when it lies in (0, 1 - TANGENT_BAND), else T_INF.
 fn hit_sphere_through_end(ray: Ray, s: Sphere) -> f32 {
-    let f = ray.origin - s.center;
-    let a = dot(ray.dir, ray.dir);
-    let b = -dot(f, ray.dir);
-    let c = dot(f, f) - s.radius * s.radius;
-    let l = f + (b / a) * ray.dir;
-    let disc = s.radius * s.radius - dot(l, l);
-    if (disc < 0.0) {
-        return T_INF;
-    }
-    let q = b + sign_nonzero(b) * sqrt(a * disc);
-    let t0 = c / q;
-    let t1 = q / a;
-    // The root nearer 1 is the light's own.
-    let other = select(t1, t0, abs(t0 - 1.0) > abs(t1 - 1.0));
+    let roots = sphere_roots(ray, s);
+    // The root nearer 1 is the light's own (a miss gives T_INF either way).
+    let other = select(roots.y, roots.x, abs(roots.x - 1.0) > abs(roots.y - 1.0));
     if (other > 0.0 && other < 1.0 - TANGENT_BAND) {
         return other;
     }

@@ -276,10 +276,7 @@ impl Renderer {
                 let device_type = ctx.info().device_type.as_str();
                 let host_device = matches!(device_type, "CPU" | "integrated GPU");
                 let texels = crate::gpu::tile_texels(
-                    self.options
-                        .gpu
-                        .tile_size
-                        .max(crate::layout::WORKGROUP_SIZE),
+                    self.options.gpu.tile_size,
                     p.camera.width,
                     p.camera.height,
                 );

@@ -177,11 +177,8 @@ fn naive_methods_fail_the_suite() {
     }
 }
 
-/// Scenes scaled about the camera by 1e-3, 1e3 and 1e4 render the image of
-/// the unscaled scene on each backend, within the GPU-vs-CPU test's tolerance
-/// (0.25 levels; at most 5e-5 of the pixels over it).
-#[test]
-fn scale_invariance() {
+/// The showcase and every classic scene.
+fn scale_test_scenes() -> Vec<(String, glint::scene::Scene)> {
     let mut scenes = vec![(
         "showcase".to_string(),
         glint::scene::read_scene(&repo_path("scenes/showcase.scene")).expect("showcase parses"),
@@ -194,13 +191,27 @@ fn scale_invariance() {
             ));
         }
     }
-    let (w, h) = (320, 240);
+    scenes
+}
+
+/// Asserts that each scene scaled about the camera by each factor renders
+/// the image of the unscaled scene on each backend, within the GPU-vs-CPU
+/// test's tolerance (0.25 levels; at most 5e-5 of the pixels over it);
+/// `rescaled`: whether the factors take the scene out of the range rendered
+/// as it is (`Scene::render_scale`).
+fn assert_scaled_images_match(factors: &[f64], (w, h): (u32, u32), rescaled: bool) {
     let allowed = (5e-5 * f64::from(w * h)).floor() as usize;
-    for (name, scene) in &scenes {
+    for (name, scene) in &scale_test_scenes() {
+        if rescaled {
+            assert_eq!(scene.render_scale(), 1.0, "{name} is rendered as it is");
+        }
         let base_gpu = common::render_gpu(scene, w, h, common::WHITE);
         let base_cpu = common::render_cpu(scene, w, h, Precision::F32, common::WHITE);
-        for factor in [1e-3, 1e3, 1e4] {
+        for &factor in factors {
             let scaled = scene.scaled(factor);
+            if rescaled {
+                assert_ne!(scaled.render_scale(), 1.0, "{name} at {factor:e}");
+            }
             let label = format!("{name}-scaled-{factor:e}");
             let cpu = common::render_cpu(&scaled, w, h, Precision::F32, common::WHITE);
             let cmp = compare_framebuffers(&cpu, &base_cpu, 0.25).expect("same size");
@@ -215,45 +226,20 @@ fn scale_invariance() {
     }
 }
 
+/// Scenes scaled about the camera by 1e-3, 1e3 and 1e4 render the image of
+/// the unscaled scene on each backend.
+#[test]
+fn scale_invariance() {
+    assert_scaled_images_match(&[1e-3, 1e3, 1e4], (320, 240), false);
+}
+
 /// Far outside f32's comfortable range (where the textbook f32 renderer
 /// loses triangles from 1e13 and spheres from 1e20): the scene is brought
 /// back by a power of two (`Scene::render_scale`), so scaled by 1e-30 to
 /// 1e30 about the camera it renders its unscaled image on each f32 backend.
 #[test]
 fn extreme_scales_render_the_unscaled_image() {
-    let mut scenes = vec![(
-        "showcase".to_string(),
-        glint::scene::read_scene(&repo_path("scenes/showcase.scene")).expect("showcase parses"),
-    )];
-    if common::classic_dir().is_some() {
-        for name in common::CLASSIC {
-            scenes.push((
-                name.to_string(),
-                common::classic_scene(name).expect("classic"),
-            ));
-        }
-    }
-    let (w, h) = (160, 120);
-    let allowed = (5e-5 * f64::from(w * h)).floor() as usize;
-    for (name, scene) in &scenes {
-        assert_eq!(scene.render_scale(), 1.0, "{name} is rendered as it is");
-        let base_gpu = common::render_gpu(scene, w, h, common::WHITE);
-        let base_cpu = common::render_cpu(scene, w, h, Precision::F32, common::WHITE);
-        for factor in [1e-30, 1e-20, 1e-10, 1e10, 1e20, 1e30] {
-            let scaled = scene.scaled(factor);
-            assert_ne!(scaled.render_scale(), 1.0, "{name} at {factor:e}");
-            let label = format!("{name}-scaled-{factor:e}");
-            let cpu = common::render_cpu(&scaled, w, h, Precision::F32, common::WHITE);
-            let cmp = compare_framebuffers(&cpu, &base_cpu, 0.25).expect("same size");
-            common::assert_within(&format!("{label}-cpu"), &cpu, &base_cpu, &cmp, allowed);
-            if let (Some(base), Some(img)) =
-                (&base_gpu, common::render_gpu(&scaled, w, h, common::WHITE))
-            {
-                let cmp = compare_framebuffers(&img, base, 0.25).expect("same size");
-                common::assert_within(&format!("{label}-gpu"), &img, base, &cmp, allowed);
-            }
-        }
-    }
+    assert_scaled_images_match(&[1e-30, 1e-20, 1e-10, 1e10, 1e20, 1e30], (160, 120), true);
 }
 
 /// A primitive too small for f32 where it is gets named (no scaling helps

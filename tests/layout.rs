@@ -256,4 +256,6 @@ fn shared_constants_match() {
     for (name, rust) in pairs {
         assert_eq!(f32_const(&m, name).to_bits(), rust.to_bits(), "{name}");
     }
+    let band = glint::lights_on_surfaces::TANGENT_BAND;
+    assert_eq!(f64::from(f32_const(&m, "TANGENT_BAND")), band);
 }

@@ -271,7 +271,9 @@ pub fn hit_aabb<R: Real>(ray: &Ray<R>, bmin: [f32; 3], bmax: [f32; 3], t_max: R)
     }
 }
 
-pub fn hit_sphere<R: Real>(ray: &Ray<R>, s: &Sphere<R>, t_max: R) -> R {
+/// Both t where the ray's line meets the sphere (unordered), or T_INF twice
+/// when it misses (the shader's `sphere_roots`).
+pub fn sphere_roots<R: Real>(ray: &Ray<R>, s: &Sphere<R>) -> [R; 2] {
     let f = ray.origin - s.center;
     let a = R::dot(ray.dir, ray.dir);
     let b = -R::dot(f, ray.dir);
@@ -279,11 +281,14 @@ pub fn hit_sphere<R: Real>(ray: &Ray<R>, s: &Sphere<R>, t_max: R) -> R {
     let l = f + ray.dir * (b / a);
     let disc = s.radius * s.radius - R::dot(l, l);
     if disc < R::ZERO {
-        return R::T_INF;
+        return [R::T_INF; 2];
     }
     let q = b + b.sign_nonzero() * (a * disc).sqrt();
-    let t0 = c / q;
-    let t1 = q / a;
+    [c / q, q / a]
+}
+
+pub fn hit_sphere<R: Real>(ray: &Ray<R>, s: &Sphere<R>, t_max: R) -> R {
+    let [t0, t1] = sphere_roots(ray, s);
     let t_lo = t0.min(t1);
     let t_hi = t0.max(t1);
     if t_lo > R::ZERO && t_lo < t_max {
@@ -299,19 +304,8 @@ pub fn hit_sphere<R: Real>(ray: &Ray<R>, s: &Sphere<R>, t_max: R) -> R {
 /// that is not the light's own, when it lies in (0, 1 - TANGENT_BAND), else
 /// T_INF (the shader's `hit_sphere_through_end`).
 pub fn hit_sphere_through_end<R: Real>(ray: &Ray<R>, s: &Sphere<R>) -> R {
-    let f = ray.origin - s.center;
-    let a = R::dot(ray.dir, ray.dir);
-    let b = -R::dot(f, ray.dir);
-    let c = R::dot(f, f) - s.radius * s.radius;
-    let l = f + ray.dir * (b / a);
-    let disc = s.radius * s.radius - R::dot(l, l);
-    if disc < R::ZERO {
-        return R::T_INF;
-    }
-    let q = b + b.sign_nonzero() * (a * disc).sqrt();
-    let t0 = c / q;
-    let t1 = q / a;
-    // The root nearer 1 is the light's own.
+    let [t0, t1] = sphere_roots(ray, s);
+    // The root nearer 1 is the light's own (a miss gives T_INF either way).
     let other = if (t0 - R::ONE).abs() > (t1 - R::ONE).abs() {
         t0
     } else {

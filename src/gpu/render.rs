@@ -549,12 +549,12 @@ impl GpuRenderer {
         sink: &mut dyn FnMut(TileRect, &[[f32; 4]]),
     ) -> Result<Timings, GpuError> {
         let mut timings = Timings::default();
-        let tile_edge = options.tile_size.max(WORKGROUP_SIZE);
+        let tile_edge = tile_edge(options.tile_size);
         let (kernel, tiles, out_texels) = match job {
             Job::Image(kernel) => (
                 kernel,
                 tiles(camera.width, camera.height, tile_edge),
-                tile_texels(tile_edge, camera.width, camera.height),
+                tile_texels(options.tile_size, camera.width, camera.height),
             ),
             Job::Pixel(origin) => {
                 let lights = (scene.lights.len() as u32).min(PATH_MAX_LIGHTS);
@@ -1240,10 +1240,16 @@ fn usage_for(ty: vk::DescriptorType) -> vk::BufferUsageFlags {
     }
 }
 
-/// Texels of the largest tile of a `width` x `height` image cut into tiles
-/// of `edge`: what each slot's tile buffers hold.
-pub fn tile_texels(edge: u32, width: u32, height: u32) -> u64 {
+/// Texels of the largest tile of a `width` x `height` image rendered with
+/// `--tile tile_size`: what each slot's tile buffers hold.
+pub fn tile_texels(tile_size: u32, width: u32, height: u32) -> u64 {
+    let edge = tile_edge(tile_size);
     u64::from(edge.min(width)) * u64::from(edge.min(height))
+}
+
+/// The tile edge a `tile_size` gives: at least one workgroup.
+fn tile_edge(tile_size: u32) -> u32 {
+    tile_size.max(WORKGROUP_SIZE)
 }
 
 fn tiles(width: u32, height: u32, edge: u32) -> Vec<TileRect> {
