@@ -118,6 +118,21 @@ fn xyz(t: [f32; 4]) -> [f64; 3] {
 }
 
 impl PathRecord {
+    /// The record of a scene rendered scaled by `scale` (`Bvh::scale`), in
+    /// the scene's own units: distances and points divided by it (exact,
+    /// `scale` is a power of two); directions, normals and fractions stay.
+    pub fn in_scene_units(mut self, scale: f64) -> PathRecord {
+        let unscale = |p: [f64; 3]| p.map(|v| v / scale);
+        self.t /= scale;
+        if let Some(surface) = &mut self.surface {
+            surface.point = unscale(surface.point);
+        }
+        for light in &mut self.lights {
+            light.origin = unscale(light.origin);
+        }
+        self
+    }
+
     /// Decodes the shader's `probe_pixel` record. Texels: 0 (prim, t, b1,
     /// b2), 1 (ray direction, flags), 2 (colour, shadow mask); for a hit
     /// also 3 (point, shininess), 4 (normal, lights listed), 5 geometric

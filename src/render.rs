@@ -337,7 +337,7 @@ impl Renderer {
             )));
         }
         let p = self.prepare(scene, &mut Timings::default());
-        Ok(match &self.engine {
+        let record = match &self.engine {
             Engine::Gpu { renderer, .. } => renderer.pixel_path(
                 &GpuScene::pack(scene, &p.bvh),
                 &p.camera,
@@ -352,7 +352,8 @@ impl Renderer {
                 &self.cpu_options(&p, *precision),
                 pixel,
             ),
-        })
+        };
+        Ok(record.in_scene_units(p.bvh.scale))
     }
 
     fn probed<T>(&self, value: T) -> Probed<T> {

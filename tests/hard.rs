@@ -369,3 +369,39 @@ fn degenerate_triangles_are_never_hit() {
         }
     }
 }
+
+/// `--pixel` on a rescaled scene reports the scene's own units.
+#[test]
+fn pixel_paths_of_rescaled_scenes_are_in_scene_units() {
+    let scene = glint::scene::read_scene(&repo_path("scenes/showcase.scene")).expect("parses");
+    let options = glint::render::RenderOptions {
+        width: 64,
+        height: 48,
+        backend: glint::render::Backend::Cpu,
+        ..Default::default()
+    };
+    let path = |s: &glint::scene::Scene| {
+        glint::render::pixel_path(s, &options, [32, 30])
+            .expect("path")
+            .value
+    };
+    let base = path(&scene);
+    let far = path(&scene.scaled(1e20));
+    assert!(base.surface.is_some());
+    assert!(
+        (far.t / base.t / 1e20 - 1.0).abs() < 1e-6,
+        "{} vs {}",
+        far.t,
+        base.t
+    );
+    let (a, b) = (
+        base.surface.expect("hit").point,
+        far.surface.expect("hit").point,
+    );
+    for k in 0..3 {
+        assert!(
+            (b[k] - a[k] * 1e20).abs() <= 1e-5 * (a[k].abs() * 1e20 + 1e15),
+            "{a:?} {b:?}"
+        );
+    }
+}
