@@ -625,8 +625,8 @@ fn light_at(index: u32, time: f32) -> Light {
     return light;
 }
 
-// The run of `skips` (first, count) for the shadow ray being traced; (0, 0)
-// for every other ray.
+// The run of `skips` (first, count) for the shadow ray being traced, set by
+// point_term (the only caller of occluder); read only by any-hit traversal.
 var<private> skip_range: vec2<u32>;
 
 fn skipped(prim: u32) -> bool {
@@ -901,9 +901,6 @@ fn point_term(sp: SurfacePoint, view: vec3<f32>, light_pos: vec3<f32>, color: ve
         skip_range = skip;
     }
     var term = LightTerm(origin, occluder(make_ray(origin, light_pos - origin, time)), 0.0, 0.0, 0.0, vec3(0.0));
-    if (LIGHT_SKIPS) {
-        skip_range = vec2(0u);
-    }
     if (term.blocker.prim != NO_HIT) {
         return term;
     }

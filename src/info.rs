@@ -132,6 +132,10 @@ impl fmt::Display for SceneInfo<'_> {
                 let v = l.velocity;
                 write!(f, " moving ({}, {}, {})/s", v.x, v.y, v.z)?;
             }
+            let on = self.bvh.surfaces_at_lights.get(i).map_or(0, Vec::len);
+            if on > 0 {
+                write!(f, ", on {on} surface(s), which do not shadow it")?;
+            }
             writeln!(f)?;
         }
         writeln!(

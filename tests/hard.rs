@@ -405,3 +405,14 @@ fn pixel_paths_of_rescaled_scenes_are_in_scene_units() {
         );
     }
 }
+
+/// The surfaces through each light of `lights_on_surfaces_ii`: one floor
+/// triangle, the two beside a shared edge, the six around a vertex, the wall,
+/// the sphere twice.
+#[test]
+fn surfaces_through_lights_are_found() {
+    let c = case("lights_on_surfaces_ii");
+    let bvh = Bvh::build(&c.scene);
+    let counts: Vec<usize> = bvh.surfaces_at_lights.iter().map(Vec::len).collect();
+    assert_eq!(counts, [1, 2, 6, 1, 1, 1]);
+}
