@@ -258,6 +258,7 @@ override SPLIT: bool = false;
 // surfaces through it by the rule of src/lights_on_surfaces.rs.
 override LIGHT_SKIPS: bool = false;
 const TANGENT_BAND: f32 = 0.000244140625;
+const ON_SURFACE: f32 = 0.00000095367431640625;
 const SPLIT_CHUNKS: u32 = 4u;
 const LIGHT_POINT: u32 = 0u;
 const LIGHT_SPHERE: u32 = 1u;
@@ -407,17 +408,18 @@ fn hit_aabb(ray: Ray, bmin: vec3<f32>, bmax: vec3<f32>, t_max: f32) -> f32 {
 }
 
 // Both t where the ray's line meets the sphere (unordered), or T_INF twice
-// when it misses. Ray Tracing Gems ch. 7 (Haines et al.): the discriminant
+// when it misses, or only grazes it: its discriminant is below `band` (see
+// graze_band; 0 but for some shadow rays). Ray Tracing Gems ch. 7 (Haines et al.): the discriminant
 // from the perpendicular distance to the centre and the stable root pair
 // avoid catastrophic cancellation for small or distant spheres.
-fn sphere_roots(ray: Ray, s: Sphere) -> vec2<f32> {
+fn sphere_roots(ray: Ray, s: Sphere, band: f32) -> vec2<f32> {
     let f = ray.origin - s.center;
     let a = dot(ray.dir, ray.dir);
     let b = -dot(f, ray.dir);
     let c = dot(f, f) - s.radius * s.radius;
     let l = f + (b / a) * ray.dir;
     let disc = s.radius * s.radius - dot(l, l);
-    if (disc < 0.0) {
+    if (disc < band) {
         return vec2(T_INF);
     }
     let q = b + sign_nonzero(b) * sqrt(a * disc);
@@ -425,11 +427,11 @@ fn sphere_roots(ray: Ray, s: Sphere) -> vec2<f32> {
 }
 
 // Nearest t in (0, t_max) where the ray meets the sphere, or T_INF.
-fn hit_sphere(ray: Ray, s: Sphere, t_max: f32) -> f32 {
+fn hit_sphere(ray: Ray, s: Sphere, t_max: f32, band: f32) -> f32 {
     if (!ROBUST) {
         return hit_sphere_naive(ray, s, t_max);
     }
-    let roots = sphere_roots(ray, s);
+    let roots = sphere_roots(ray, s, band);
     let t_lo = min(roots.x, roots.y);
     let t_hi = max(roots.x, roots.y);
     if (t_lo > 0.0 && t_lo < t_max) {
@@ -628,6 +630,35 @@ fn light_at(index: u32, time: f32) -> Light {
 // The run of `skips` (first, count) for the shadow ray being traced, set by
 // point_term (the only caller of occluder); read only by any-hit traversal.
 var<private> skip_range: vec2<u32>;
+// The grazing band's height for that shadow ray (in_plane_graze), set and
+// read alike.
+var<private> graze_h: f32;
+
+// The least discriminant r^2 - |l|^2 at which a shadow ray whose line may
+// lie up to h off its true one still meets a sphere of radius r (h = 0:
+// any). Moving a line by h changes |l|^2 by at most 2 r h + h^2, so within
+// the band it may only graze the sphere; the sphere's own rounding adds
+// ON_SURFACE r to h.
+fn graze_band(h: f32, r: f32) -> f32 {
+    if (h <= 0.0) {
+        return 0.0;
+    }
+    let hr = h + ON_SURFACE * r;
+    return hr * (2.0 * r + hr);
+}
+
+// For a shadow ray towards a point light on a surface: when the light lies
+// in the plane of the surface the ray leaves (within the ray's own lift off
+// it and the light's rounding), the height of the band within which the
+// ray's true line runs inside that plane, else 0. Such a line can only
+// touch a sphere resting on the plane, so lifted by the origin offset it
+// must not be blocked by clipping one.
+fn in_plane_graze(sp: SurfacePoint, origin: vec3<f32>, light_pos: vec3<f32>) -> f32 {
+    let to_light = light_pos - sp.p;
+    let t = abs(light_pos);
+    let h = 2.0 * length(origin - sp.p) + ON_SURFACE * (max(max(t.x, t.y), t.z) + length(to_light));
+    return select(0.0, 2.0 * h, abs(dot(sp.ng, to_light)) <= h);
+}
 
 fn skipped(prim: u32) -> bool {
     var found = false;
@@ -647,7 +678,7 @@ fn skipped(prim: u32) -> bool {
 // For a sphere through the light a shadow ray ends at: the crossing that is
 // not the light's own, when it lies in (0, 1 - TANGENT_BAND), else T_INF.
 fn hit_sphere_through_end(ray: Ray, s: Sphere) -> f32 {
-    let roots = sphere_roots(ray, s);
+    let roots = sphere_roots(ray, s, graze_band(graze_h, s.radius));
     // The root nearer 1 is the light's own (a miss gives T_INF either way).
     let other = select(roots.y, roots.x, abs(roots.x - 1.0) > abs(roots.y - 1.0));
     if (other > 0.0 && other < 1.0 - TANGENT_BAND) {
@@ -679,7 +710,12 @@ fn hit_leaf(ray: Ray, node: BvhNode, best: ptr<function, Hit>, any_hit: bool) ->
         }
         if ((prim & SPHERE_BIT) != 0u) {
             if (SPHERES) {
-                let t = hit_sphere(ray, sphere_at(index, ray.time), (*best).t);
+                let s = sphere_at(index, ray.time);
+                var band = 0.0;
+                if (LIGHT_SKIPS) {
+                    band = select(0.0, graze_band(graze_h, s.radius), any_hit);
+                }
+                let t = hit_sphere(ray, s, (*best).t, band);
                 if (t < (*best).t) {
                     *best = Hit(t, prim, 0.0, 0.0);
                     if (any_hit) {
@@ -899,6 +935,7 @@ fn point_term(sp: SurfacePoint, view: vec3<f32>, light_pos: vec3<f32>, color: ve
     let origin = offset_ray(sp.p, side, sp.scale);
     if (LIGHT_SKIPS) {
         skip_range = skip;
+        graze_h = select(0.0, in_plane_graze(sp, origin, light_pos), skip.y > 0u);
     }
     var term = LightTerm(origin, occluder(make_ray(origin, light_pos - origin, time)), 0.0, 0.0, 0.0, vec3(0.0));
     if (term.blocker.prim != NO_HIT) {

@@ -17,7 +17,13 @@
 //!   meets the sphere at the light and at one more point, which blocks when
 //!   it lies strictly between the shading point and the light, farther than
 //!   `TANGENT_BAND` (of the way) from the light, so a ray that only touches
-//!   the sphere at the light is not blocked by rounding.
+//!   the sphere at the light is not blocked by rounding;
+//! - a shadow ray leaving a surface whose plane holds the light runs inside
+//!   that plane, so it can only touch a sphere resting on it; lifted off
+//!   the plane by the origin offset it would clip one. Such a ray (found per
+//!   ray: `cpu::trace::in_plane_graze`) meets a sphere only outside a
+//!   grazing band (`cpu::trace::graze_band`) as wide as the lift and the
+//!   roundings involved.
 //!
 //! Both renderers read the same lists (`Bvh::surfaces_at_lights`); the
 //! shader only when some light has one (its `LIGHT_SKIPS` variant). Moving

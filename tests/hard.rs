@@ -10,8 +10,10 @@ use common::{gpu, repo_path};
 use glint::bvh::Bvh;
 use glint::camera::Camera;
 use glint::compare::compare_framebuffers;
+use glint::cpu::CpuOptions;
 use glint::cpu::Precision;
-use glint::hard::{self, count, metrics::failing_pixels, Case, Metric, Runner};
+use glint::hard::metrics::{failing_pixels, lone_pixels};
+use glint::hard::{self, count, Case, Metric, Runner};
 use glint::methods::Methods;
 
 fn case(name: &str) -> Case {
@@ -283,6 +285,7 @@ fn nan_ray_terminates() {
             f32::MAX,
             false,
             &[],
+            0.0,
         );
         assert_eq!(hit.prim, NO_HIT, "direction {dir:?}");
     }
@@ -415,4 +418,28 @@ fn surfaces_through_lights_are_found() {
     let bvh = Bvh::build(&c.scene);
     let counts: Vec<usize> = bvh.surfaces_at_lights.iter().map(Vec::len).collect();
     assert_eq!(counts, [1, 2, 6, 1, 1, 1]);
+}
+
+/// Where lights lie on surfaces the f64 reference itself is noise-free: no
+/// pixel stands alone against its four neighbours. Without the rule the same
+/// f64 render is salt and pepper, so the count can fail.
+#[test]
+fn f64_is_noise_free_where_lights_lie_on_surfaces() {
+    for name in ["lights_on_surfaces", "lights_on_surfaces_ii"] {
+        let c = case(name);
+        let with_rule = lone_pixels(&c.reference());
+        let mut bvh = Bvh::build(&c.scene);
+        bvh.surfaces_at_lights.iter_mut().for_each(Vec::clear);
+        let options = CpuOptions {
+            precision: Precision::F64,
+            ..CpuOptions::default()
+        };
+        let without = lone_pixels(&glint::cpu::probe(&c.scene, &bvh, &c.camera(), &options));
+        eprintln!("{name}: f64 lone pixels {with_rule} with the rule, {without} without");
+        assert_eq!(with_rule, 0, "{name}: lone pixels in the f64 reference");
+        assert!(
+            without > 100,
+            "{name}: without the rule f64 shows only {without} lone pixels"
+        );
+    }
 }

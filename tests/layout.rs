@@ -258,4 +258,6 @@ fn shared_constants_match() {
     }
     let band = glint::lights_on_surfaces::TANGENT_BAND;
     assert_eq!(f64::from(f32_const(&m, "TANGENT_BAND")), band);
+    let on_surface = glint::lights_on_surfaces::ON_SURFACE;
+    assert_eq!(f64::from(f32_const(&m, "ON_SURFACE")), on_surface);
 }

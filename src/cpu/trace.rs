@@ -272,23 +272,25 @@ pub fn hit_aabb<R: Real>(ray: &Ray<R>, bmin: [f32; 3], bmax: [f32; 3], t_max: R)
 }
 
 /// Both t where the ray's line meets the sphere (unordered), or T_INF twice
-/// when it misses (the shader's `sphere_roots`).
-pub fn sphere_roots<R: Real>(ray: &Ray<R>, s: &Sphere<R>) -> [R; 2] {
+/// when it misses, or only grazes it: its discriminant r^2 - |l|^2 is below
+/// `band` (0 but for shadow rays inside a plane through the light; see
+/// `graze_band`). The shader's `sphere_roots`.
+pub fn sphere_roots<R: Real>(ray: &Ray<R>, s: &Sphere<R>, band: R) -> [R; 2] {
     let f = ray.origin - s.center;
     let a = R::dot(ray.dir, ray.dir);
     let b = -R::dot(f, ray.dir);
     let c = R::dot(f, f) - s.radius * s.radius;
     let l = f + ray.dir * (b / a);
     let disc = s.radius * s.radius - R::dot(l, l);
-    if disc < R::ZERO {
+    if disc < band {
         return [R::T_INF; 2];
     }
     let q = b + b.sign_nonzero() * (a * disc).sqrt();
     [c / q, q / a]
 }
 
-pub fn hit_sphere<R: Real>(ray: &Ray<R>, s: &Sphere<R>, t_max: R) -> R {
-    let [t0, t1] = sphere_roots(ray, s);
+pub fn hit_sphere<R: Real>(ray: &Ray<R>, s: &Sphere<R>, t_max: R, band: R) -> R {
+    let [t0, t1] = sphere_roots(ray, s, band);
     let t_lo = t0.min(t1);
     let t_hi = t0.max(t1);
     if t_lo > R::ZERO && t_lo < t_max {
@@ -303,8 +305,8 @@ pub fn hit_sphere<R: Real>(ray: &Ray<R>, s: &Sphere<R>, t_max: R) -> R {
 /// For a sphere through the light a shadow ray ends at (`skip`): the crossing
 /// that is not the light's own, when it lies in (0, 1 - TANGENT_BAND), else
 /// T_INF (the shader's `hit_sphere_through_end`).
-pub fn hit_sphere_through_end<R: Real>(ray: &Ray<R>, s: &Sphere<R>) -> R {
-    let [t0, t1] = sphere_roots(ray, s);
+pub fn hit_sphere_through_end<R: Real>(ray: &Ray<R>, s: &Sphere<R>, band: R) -> R {
+    let [t0, t1] = sphere_roots(ray, s, band);
     // The root nearer 1 is the light's own (a miss gives T_INF either way).
     let other = if (t0 - R::ONE).abs() > (t1 - R::ONE).abs() {
         t0
@@ -412,6 +414,7 @@ fn hit_leaf<R: Real>(
     best: &mut Hit<R>,
     any_hit: bool,
     skip: &[u32],
+    graze: R,
 ) -> bool {
     let first = node.right_or_first as usize;
     // The shader branches on ROBUST inside hit_sphere and hit_triangle.
@@ -422,7 +425,8 @@ fn hit_leaf<R: Real>(
             // A surface through the light: triangles never block it, a
             // sphere only with its other crossing.
             if prim & SPHERE_BIT != 0 {
-                let t = hit_sphere_through_end(ray, &sphere_at(scene, index, ray.time));
+                let sphere = &sphere_at(scene, index, ray.time);
+                let t = hit_sphere_through_end(ray, sphere, graze_band(graze, sphere.radius));
                 if t < best.t {
                     *best = Hit {
                         t,
@@ -438,7 +442,12 @@ fn hit_leaf<R: Real>(
         if prim & SPHERE_BIT != 0 {
             let sphere = &sphere_at(scene, index, ray.time);
             let t = if robust {
-                hit_sphere(ray, sphere, best.t)
+                let band = if any_hit {
+                    graze_band(graze, sphere.radius)
+                } else {
+                    R::ZERO
+                };
+                hit_sphere(ray, sphere, best.t, band)
             } else {
                 hit_sphere_naive(ray, sphere, best.t)
             };
@@ -471,13 +480,15 @@ fn hit_leaf<R: Real>(
     false
 }
 
-/// `skip`: with `any_hit`, the surfaces through the light the ray ends at.
+/// With `any_hit`, `skip` names the surfaces through the light the ray ends
+/// at and `graze` is the height of the ray's grazing band (`graze_band`).
 pub fn traverse<R: Real>(
     scene: &CpuScene<R>,
     ray: &Ray<R>,
     t_max: R,
     any_hit: bool,
     skip: &[u32],
+    graze: R,
 ) -> Hit<R> {
     let mut best = Hit {
         t: t_max,
@@ -495,7 +506,7 @@ pub fn traverse<R: Real>(
     loop {
         let node = &nodes[index];
         if node.count > 0 {
-            if hit_leaf(scene, ray, node, &mut best, any_hit, skip) {
+            if hit_leaf(scene, ray, node, &mut best, any_hit, skip, graze) {
                 return best;
             }
             if sp == 0 {
@@ -530,12 +541,46 @@ pub fn traverse<R: Real>(
 }
 
 pub fn trace_closest<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>) -> Hit<R> {
-    traverse(scene, ray, R::T_INF, false, &[])
+    traverse(scene, ray, R::T_INF, false, &[], R::ZERO)
 }
 
-/// `skip`: the surfaces through the light (`lights_on_surfaces`).
-pub fn occluder<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>, skip: &[u32]) -> Hit<R> {
-    traverse(scene, ray, R::ONE, true, skip)
+/// `skip`, `graze`: the surfaces through the light and the grazing band's
+/// height (`lights_on_surfaces`; empty and 0 for other lights).
+pub fn occluder<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>, skip: &[u32], graze: R) -> Hit<R> {
+    traverse(scene, ray, R::ONE, true, skip, graze)
+}
+
+/// The least discriminant r^2 - |l|^2 at which a shadow ray whose line may
+/// lie up to `h` off its true one still meets a sphere of radius `r`
+/// (`h` = 0: any). Moving a line by h changes |l|^2 by at most
+/// 2 r h + h^2, so within the band it may only graze the sphere; the
+/// sphere's own rounding adds ON_SURFACE r to h. The shader's `graze_band`.
+pub fn graze_band<R: Real>(h: R, r: R) -> R {
+    if h <= R::ZERO {
+        return R::ZERO;
+    }
+    let h = h + R::from_f64(crate::lights_on_surfaces::ON_SURFACE) * r;
+    h * (R::TWO * r + h)
+}
+
+/// For a shadow ray towards a point light on a surface: when the light lies
+/// in the plane of the surface the ray leaves (within the ray's own lift off
+/// it and the light's rounding), the height of the band within which the
+/// ray's true line runs inside that plane, else 0. Such a line can only
+/// touch a sphere resting on the plane, so lifted by the origin offset it
+/// must not be blocked by clipping one (`lights_on_surfaces`).
+pub fn in_plane_graze<R: Real>(sp: &SurfacePoint<R>, origin: R::V3, target: R::V3) -> R {
+    let length = |v: R::V3| R::dot(v, v).sqrt();
+    let to_light = target - sp.p;
+    let t = R::vabs(target);
+    let h = R::TWO * length(origin - sp.p)
+        + R::from_f64(crate::lights_on_surfaces::ON_SURFACE)
+            * (t[0].max(t[1]).max(t[2]) + length(to_light));
+    if R::dot(sp.ng, to_light).abs() <= h {
+        R::TWO * h
+    } else {
+        R::ZERO
+    }
 }
 
 pub fn offset_ray<R: Real>(scene: &CpuScene<R>, p: R::V3, n: R::V3, scale: R::V3) -> R::V3 {
@@ -645,10 +690,15 @@ pub fn point_term<R: Real>(
         -sp.ng
     };
     let origin = offset_ray(scene, sp.p, side, sp.scale);
+    let graze = if skip.is_empty() {
+        R::ZERO
+    } else {
+        in_plane_graze(sp, origin, target)
+    };
     let zero = R::v3(R::ZERO, R::ZERO, R::ZERO);
     let mut term = LightTerm {
         origin,
-        blocker: occluder(scene, &make_ray(origin, target - origin, time), skip),
+        blocker: occluder(scene, &make_ray(origin, target - origin, time), skip, graze),
         ln: R::ZERO,
         rv: R::ZERO,
         spec: R::ZERO,

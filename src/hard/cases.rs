@@ -522,7 +522,7 @@ fn degenerate_lights() -> Vec<Case> {
         "lights_on_surfaces",
         "lights on a sphere, on the ground plane, inside a sphere, at the camera; two coincident",
         scene(0.05, lights, spheres, tris),
-        &[Nan],
+        &[Nan, Acne, Leak, Speckle],
     );
 
     // A floor of 4 x 4 quads with lights in a triangle, on a shared edge and

@@ -179,3 +179,27 @@ fn for_each_failure(
         }
     }
 }
+
+/// Pixels of `image` alone against their own 4 neighbours: those hit the
+/// same primitive and share one verdict, and the pixel's differs. Salt and
+/// pepper by its shape; needs no reference, so it can judge the reference.
+pub fn lone_pixels(image: &ProbeImage) -> usize {
+    let mut n = 0;
+    for y in 1..image.height.saturating_sub(1) {
+        for x in 1..image.width.saturating_sub(1) {
+            let p = image.get(x, y);
+            let around =
+                [(x, y - 1), (x - 1, y), (x + 1, y), (x, y + 1)].map(|(a, b)| image.get(a, b));
+            let first = around[0];
+            if p.hit()
+                && around
+                    .iter()
+                    .all(|q| q.prim == p.prim && verdict(q) == verdict(first))
+                && verdict(p) != verdict(first)
+            {
+                n += 1;
+            }
+        }
+    }
+    n
+}
