@@ -34,6 +34,9 @@ pub struct Comparison {
     pub threshold: f64,
     /// Pixels whose largest channel difference exceeds `threshold`.
     pub over_threshold: usize,
+    /// Root mean square of the per-channel differences on linear values
+    /// (0-1, not levels).
+    pub rmse: f64,
     /// Peak signal-to-noise ratio in dB (infinite for identical images).
     pub psnr: f64,
     /// Mean NVIDIA FLIP error (0 = identical, 1 = maximal), LDR, default viewing conditions.
@@ -68,8 +71,9 @@ pub fn compare_images(a: &RgbImage, b: &RgbImage, threshold: f64) -> Result<Comp
     Ok(c)
 }
 
-/// Compares two float renders before 8-bit rounding; `threshold` is in levels.
-/// FLIP is computed on their 8-bit conversions.
+/// Compares two float renders before 8-bit rounding (values clamped to
+/// [0, 1]); `threshold` is in levels. FLIP is computed on their 8-bit
+/// conversions.
 pub fn compare_framebuffers(
     a: &Framebuffer,
     b: &Framebuffer,
@@ -133,6 +137,7 @@ fn compare_levels(
         mean_abs: sum / channels,
         threshold,
         over_threshold: diffs.iter().filter(|d| per_pixel(d) > threshold).count(),
+        rmse: mse.sqrt() / 255.0,
         psnr: if mse == 0.0 {
             f64::INFINITY
         } else {
@@ -181,6 +186,7 @@ impl fmt::Display for Comparison {
             "over threshold  {} pixels (> {} levels)",
             self.over_threshold, self.threshold
         )?;
+        writeln!(f, "RMSE            {:.6} (linear, 0-1)", self.rmse)?;
         writeln!(f, "PSNR            {:.2} dB", self.psnr)?;
         write!(f, "FLIP mean       {:.6}", self.flip_mean)?;
         if !self.worst.is_empty() {

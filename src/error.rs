@@ -24,7 +24,7 @@ pub enum Error {
     },
     #[error("cannot read image {path}: {message}")]
     ReadImage { path: PathBuf, message: String },
-    #[error("{0}: unsupported image type; use a .png, .jpg or .jpeg file name")]
+    #[error("{0}: unsupported image type; use a .png, .jpg, .jpeg or .exr file name")]
     UnsupportedImageFormat(PathBuf),
     #[error("images differ in size: {0}x{1} vs {2}x{3}")]
     SizeMismatch(u32, u32, u32, u32),

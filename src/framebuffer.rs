@@ -1,10 +1,11 @@
 //! A rendered image in linear [0, 1] RGB (f32), its 8-bit conversion, and
-//! writing it to disk without ever leaving a half-written file.
+//! reading and writing it (PNG, JPEG, float EXR) without ever leaving a
+//! half-written file.
 
 use std::io::Write;
 use std::path::Path;
 
-use image::{ImageFormat, RgbImage};
+use image::RgbImage;
 
 use crate::Error;
 
@@ -41,13 +42,86 @@ impl Framebuffer {
 /// JPEG quality used when the caller does not choose one.
 pub const DEFAULT_JPEG_QUALITY: u8 = 95;
 
-/// Writes `img` as PNG or JPEG (chosen by the extension: .png, .jpg, .jpeg).
-///
-/// The image goes to a temporary file in the same directory, which is then
+/// The image files glint reads and writes, by extension.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum ImageFile {
+    Png,
+    Jpeg,
+    /// OpenEXR: linear f32 RGB, no quantization.
+    Exr,
+}
+
+impl ImageFile {
+    /// The kind `path`'s extension names (case-insensitive).
+    pub fn of(path: &Path) -> Result<ImageFile, Error> {
+        let ext = path
+            .extension()
+            .and_then(|e| e.to_str())
+            .map(str::to_ascii_lowercase);
+        match ext.as_deref() {
+            Some("png") => Ok(ImageFile::Png),
+            Some("jpg" | "jpeg") => Ok(ImageFile::Jpeg),
+            Some("exr") => Ok(ImageFile::Exr),
+            _ => Err(Error::UnsupportedImageFormat(path.to_path_buf())),
+        }
+    }
+
+    /// Whether it keeps float values (else 8 bits per channel).
+    pub fn is_float(self) -> bool {
+        self == ImageFile::Exr
+    }
+}
+
+/// Writes a render: as float values for .exr, else its 8-bit conversion as
+/// PNG or JPEG (`write_image`).
+pub fn write_framebuffer(fb: &Framebuffer, path: &Path, jpeg_quality: u8) -> Result<(), Error> {
+    if ImageFile::of(path)? != ImageFile::Exr {
+        return write_image(&fb.to_rgb8(), path, jpeg_quality);
+    }
+    let flat: Vec<f32> = fb.pixels.iter().flatten().copied().collect();
+    let img = image::Rgb32FImage::from_raw(fb.width, fb.height, flat)
+        .expect("pixel count matches width * height");
+    write_atomically(path, |w| {
+        img.write_with_encoder(image::codecs::openexr::OpenExrEncoder::new(w))
+    })
+}
+
+/// Writes `img` as PNG or JPEG (chosen by the extension: .png, .jpg, .jpeg;
+/// .exr stores its 8-bit values as floats).
+pub fn write_image(img: &RgbImage, path: &Path, jpeg_quality: u8) -> Result<(), Error> {
+    match ImageFile::of(path)? {
+        ImageFile::Jpeg => write_atomically(path, |w| {
+            img.write_with_encoder(image::codecs::jpeg::JpegEncoder::new_with_quality(
+                w,
+                jpeg_quality,
+            ))
+        }),
+        ImageFile::Png => write_atomically(path, |w| {
+            img.write_with_encoder(image::codecs::png::PngEncoder::new(w))
+        }),
+        ImageFile::Exr => {
+            let fb = Framebuffer {
+                width: img.width(),
+                height: img.height(),
+                pixels: img
+                    .pixels()
+                    .map(|p| p.0.map(|c| f32::from(c) / 255.0))
+                    .collect(),
+            };
+            write_framebuffer(&fb, path, jpeg_quality)
+        }
+    }
+}
+
+type Sink<'a> = std::io::BufWriter<&'a mut std::fs::File>;
+
+/// Runs `encode` into a temporary file in `path`'s directory, which is then
 /// renamed over `path`: an interrupted or failed write never leaves a
 /// half-written image or clobbers a good one.
-pub fn write_image(img: &RgbImage, path: &Path, jpeg_quality: u8) -> Result<(), Error> {
-    let format = image_format(path)?;
+fn write_atomically(
+    path: &Path,
+    encode: impl FnOnce(&mut Sink<'_>) -> image::ImageResult<()>,
+) -> Result<(), Error> {
     let wrap = |source: std::io::Error| Error::WriteImage {
         path: path.to_path_buf(),
         source,
@@ -64,13 +138,7 @@ pub fn write_image(img: &RgbImage, path: &Path, jpeg_quality: u8) -> Result<(), 
     let _registered = PartialFile::register(tmp.path());
     {
         let mut w = std::io::BufWriter::new(tmp.as_file_mut());
-        let encoded = match format {
-            ImageFormat::Jpeg => img.write_with_encoder(
-                image::codecs::jpeg::JpegEncoder::new_with_quality(&mut w, jpeg_quality),
-            ),
-            _ => img.write_with_encoder(image::codecs::png::PngEncoder::new(&mut w)),
-        };
-        encoded.map_err(|e| wrap(std::io::Error::other(e)))?;
+        encode(&mut w).map_err(|e| wrap(std::io::Error::other(e)))?;
         w.flush().map_err(wrap)?;
     }
     tmp.as_file().sync_all().map_err(wrap)?;
@@ -119,25 +187,31 @@ pub fn remove_partial_files() {
     }
 }
 
-fn image_format(path: &Path) -> Result<ImageFormat, Error> {
-    let ext = path
-        .extension()
-        .and_then(|e| e.to_str())
-        .map(str::to_ascii_lowercase);
-    match ext.as_deref() {
-        Some("png") => Ok(ImageFormat::Png),
-        Some("jpg" | "jpeg") => Ok(ImageFormat::Jpeg),
-        _ => Err(Error::UnsupportedImageFormat(path.to_path_buf())),
+/// Reads a PNG, JPEG or EXR as 8-bit RGB (EXR values clamped and rounded
+/// as the image convention says).
+pub fn read_image(path: &Path) -> Result<RgbImage, Error> {
+    if ImageFile::of(path)?.is_float() {
+        return Ok(read_framebuffer(path)?.to_rgb8());
     }
+    Ok(open(path)?.to_rgb8())
 }
 
-/// Reads a PNG or JPEG as 8-bit RGB.
-pub fn read_image(path: &Path) -> Result<RgbImage, Error> {
-    let img = image::open(path).map_err(|e| Error::ReadImage {
+/// Reads a PNG, JPEG or EXR as linear float RGB (8-bit values v / 255).
+pub fn read_framebuffer(path: &Path) -> Result<Framebuffer, Error> {
+    ImageFile::of(path)?;
+    let img = open(path)?.to_rgb32f();
+    Ok(Framebuffer {
+        width: img.width(),
+        height: img.height(),
+        pixels: img.pixels().map(|p| p.0).collect(),
+    })
+}
+
+fn open(path: &Path) -> Result<image::DynamicImage, Error> {
+    image::open(path).map_err(|e| Error::ReadImage {
         path: path.to_path_buf(),
         message: e.to_string(),
-    })?;
-    Ok(img.to_rgb8())
+    })
 }
 
 #[cfg(test)]
@@ -151,5 +225,42 @@ mod tests {
         assert_eq!(to_u8(-1.0), 0);
         assert_eq!(to_u8(2.0), 255);
         assert_eq!(to_u8(0.3), 77); // 76.5 -> 77
+    }
+
+    /// EXR keeps every float bit, values beyond [0, 1] included; PNG keeps
+    /// the 8-bit conversion.
+    #[test]
+    fn exr_round_trips_floats_and_png_rounds() {
+        let dir = tempfile::tempdir().expect("temp dir");
+        let fb = Framebuffer {
+            width: 3,
+            height: 2,
+            pixels: vec![
+                [0.0, 1.0, 0.5],
+                [0.123_456_79, 1e-7, 0.999_999],
+                [2.5, -0.25, 0.3],
+                [1.0 / 3.0, 0.7, 0.1],
+                [0.0; 3],
+                [1.0; 3],
+            ],
+        };
+        let exr = dir.path().join("a.EXR");
+        write_framebuffer(&fb, &exr, 95).expect("write exr");
+        assert_eq!(read_framebuffer(&exr).expect("read exr"), fb);
+        assert_eq!(read_image(&exr).expect("read exr as 8 bits"), fb.to_rgb8());
+        let png = dir.path().join("a.png");
+        write_framebuffer(&fb, &png, 95).expect("write png");
+        let back = read_framebuffer(&png).expect("read png");
+        for (a, b) in fb.pixels.iter().zip(&back.pixels) {
+            for c in 0..3 {
+                assert_eq!(to_u8(a[c]), to_u8(b[c]), "{a:?} {b:?}");
+            }
+        }
+        let bad = dir.path().join("a.bmp");
+        assert!(matches!(
+            write_framebuffer(&fb, &bad, 95),
+            Err(Error::UnsupportedImageFormat(_))
+        ));
+        assert!(!bad.exists());
     }
 }

@@ -24,6 +24,7 @@ pub mod lights_on_surfaces;
 pub mod memory;
 pub mod methods;
 pub mod probe;
+pub mod progressive;
 pub mod render;
 pub mod scene;
 pub mod timing;

@@ -12,6 +12,7 @@ use crate::layout::GpuScene;
 use crate::memory::{self, MemoryNeed};
 use crate::methods::Methods;
 use crate::probe::{PathRecord, ProbeImage};
+use crate::progressive::{Accumulator, PassReport, Progressive, StopAt};
 use crate::scene::{Effects, Scene, Settings};
 use crate::timing::Timings;
 use crate::Error;
@@ -262,17 +263,102 @@ impl Renderer {
         scene: &Scene,
         progress: &(dyn Fn(u64, u64) + Sync),
     ) -> Result<RenderOutput, Error> {
-        let mut timings = self
-            .setup_timings
+        let mut timings = self.take_setup_timings();
+        let p = self.prepare(scene, &mut timings);
+        let packed = self.pack(scene, &p, &mut timings);
+        self.render_prepared(scene, &p, packed.as_ref(), timings, progress)
+    }
+
+    /// Renders `scene` in passes of its own samples per pixel, each with a
+    /// seed of its own, until `stop` says so (`progressive`); `on_pass`
+    /// hears of every pass. The BVH and the packed scene are built once.
+    pub fn render_progressive(
+        &self,
+        scene: &Scene,
+        stop: &StopAt,
+        on_pass: &mut dyn FnMut(&PassReport),
+    ) -> Result<Progressive, Error> {
+        let start = Instant::now();
+        let mut timings = self.take_setup_timings();
+        let mut p = self.prepare(scene, &mut timings);
+        let packed = self.pack(scene, &p, &mut timings);
+        let base_seed = p.effects.seed;
+        let spp = p.effects.spp;
+        let mut acc = Accumulator::new(p.camera.width, p.camera.height);
+        let mut history: Vec<PassReport> = Vec::new();
+        let mut last: Option<RenderOutput> = None;
+        let stopped = loop {
+            let pass = acc.passes();
+            p.effects.seed = base_seed.wrapping_add(pass);
+            let pass_timings = if pass == 0 {
+                std::mem::take(&mut timings)
+            } else {
+                Timings::default()
+            };
+            let out = self.render_prepared(scene, &p, packed.as_ref(), pass_timings, &|_, _| {})?;
+            acc.add(&out.framebuffer);
+            let report = PassReport {
+                passes: acc.passes(),
+                samples_per_pixel: acc.passes() * spp,
+                elapsed: start.elapsed(),
+                estimated_rmse: acc.estimated_rmse(),
+            };
+            on_pass(&report);
+            history.push(report);
+            match last.as_mut() {
+                None => last = Some(out),
+                Some(l) => l.timings.extend(&out.timings),
+            }
+            if let Some(reason) = stop.verdict(&history, spp) {
+                break reason;
+            }
+        };
+        let mut output = last.expect("at least one pass");
+        output.framebuffer = acc.mean();
+        let report = *history.last().expect("at least one pass");
+        Ok(Progressive {
+            output,
+            report,
+            stopped,
+            history,
+        })
+    }
+
+    fn take_setup_timings(&self) -> Timings {
+        self.setup_timings
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .take()
-            .unwrap_or_default();
-        let p = self.prepare(scene, &mut timings);
+            .unwrap_or_default()
+    }
+
+    /// The scene as the GPU reads it (None on the CPU).
+    fn pack(&self, scene: &Scene, p: &Prepared, timings: &mut Timings) -> Option<GpuScene> {
+        match &self.engine {
+            Engine::Gpu { .. } => Some(timings.time("pack", || GpuScene::pack(scene, &p.bvh))),
+            Engine::Cpu(_) => None,
+        }
+    }
+
+    fn render_prepared(
+        &self,
+        scene: &Scene,
+        p: &Prepared,
+        packed: Option<&GpuScene>,
+        mut timings: Timings,
+        progress: &(dyn Fn(u64, u64) + Sync),
+    ) -> Result<RenderOutput, Error> {
         let mut need = MemoryNeed::image(p.camera.width, p.camera.height);
+        let packed_here;
         let framebuffer = match &self.engine {
             Engine::Gpu { renderer, ctx } => {
-                let packed = timings.time("pack", || GpuScene::pack(scene, &p.bvh));
+                let packed = match packed {
+                    Some(packed) => packed,
+                    None => {
+                        packed_here = timings.time("pack", || GpuScene::pack(scene, &p.bvh));
+                        &packed_here
+                    }
+                };
                 let device_type = ctx.info().device_type.as_str();
                 let host_device = matches!(device_type, "CPU" | "integrated GPU");
                 let texels = crate::gpu::tile_texels(
@@ -280,13 +366,13 @@ impl Renderer {
                     p.camera.width,
                     p.camera.height,
                 );
-                need.add_gpu(&packed, texels, host_device);
+                need.add_gpu(packed, texels, host_device);
                 need.check(memory::available())?;
                 let (framebuffer, gpu_timings) = renderer.render(
-                    &packed,
+                    packed,
                     &p.camera,
                     self.options.background,
-                    &self.gpu_options(&p),
+                    &self.gpu_options(p),
                     progress,
                 )?;
                 timings.extend(&gpu_timings);
@@ -295,7 +381,7 @@ impl Renderer {
             Engine::Cpu(precision) => {
                 need.check(memory::available())?;
                 let start = Instant::now();
-                let options = self.cpu_options(&p, *precision);
+                let options = self.cpu_options(p, *precision);
                 let framebuffer = cpu::render(scene, &p.bvh, &p.camera, &options, progress);
                 timings.add("cpu render", start.elapsed());
                 framebuffer

@@ -155,7 +155,7 @@ fn unsupported_output_type_exits_1_and_says_which_types_work() {
     let o = glint(&args, d.path());
     assert_eq!(o.status.code(), Some(1));
     assert!(
-        stderr(&o).contains("use a .png, .jpg or .jpeg file name"),
+        stderr(&o).contains("use a .png, .jpg, .jpeg or .exr file name"),
         "{}",
         stderr(&o)
     );
@@ -547,4 +547,99 @@ fn a_closed_pipe_ends_quietly() {
         assert!(!err.contains("panicked"), "{err}");
         assert_ne!(out.status.code(), Some(101), "{err}");
     }
+}
+
+/// `--target-error` renders passes until the estimate reaches the target,
+/// says so, and writes a float EXR that `compare` reads on its values.
+#[test]
+fn target_error_stops_on_its_estimate_and_writes_exr() {
+    let d = tmp();
+    let scene = repo_path("scenes/effects/soft_shadows.scene")
+        .display()
+        .to_string();
+    let o = glint(
+        &[
+            "render",
+            &scene,
+            "a.exr",
+            "--backend",
+            "cpu",
+            "--width",
+            "32",
+            "--height",
+            "24",
+            "--target-error",
+            "0.01",
+        ],
+        d.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let out = stdout(&o);
+    assert!(
+        out.contains("samples per pixel, estimated RMSE 0.0")
+            && out.contains("stopped: the estimate reached the target"),
+        "{out}"
+    );
+    let o = glint(
+        &[
+            "render",
+            &scene,
+            "b.png",
+            "--backend",
+            "cpu",
+            "--width",
+            "32",
+            "--height",
+            "24",
+        ],
+        d.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let o = glint(&["compare", "a.exr", "b.png"], d.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(stdout(&o).contains("RMSE "), "{}", stdout(&o));
+    // A target outside (0, 1) is bad input.
+    let o = glint(
+        &[
+            "render",
+            &scene,
+            "c.exr",
+            "--backend",
+            "cpu",
+            "--target-error",
+            "0",
+        ],
+        d.path(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(!d.path().join("c.exr").exists());
+}
+
+/// A scene with nothing random converges at two identical passes, even
+/// with only a time limit.
+#[test]
+fn time_limit_on_a_noiseless_scene_stops_at_two_passes() {
+    let d = tmp();
+    let o = glint(
+        &[
+            "render",
+            &showcase(),
+            "a.png",
+            "--backend",
+            "cpu",
+            "--width",
+            "40",
+            "--height",
+            "30",
+            "--time-limit",
+            "100",
+        ],
+        d.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("2 passes") && stdout(&o).contains("two passes came out identical"),
+        "{}",
+        stdout(&o)
+    );
 }

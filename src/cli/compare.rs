@@ -2,12 +2,12 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::Args;
-use glint::compare::compare_images;
-use glint::framebuffer::{read_image, write_image};
+use glint::compare::{compare_framebuffers, compare_images};
+use glint::framebuffer::{read_framebuffer, read_image, write_image, ImageFile};
 
 #[derive(Args, Debug)]
 pub struct CompareArgs {
-    /// Reference image.
+    /// Reference image (.png, .jpg or float .exr).
     a: PathBuf,
     /// Image to check against it.
     b: PathBuf,
@@ -23,9 +23,16 @@ pub struct CompareArgs {
 }
 
 pub fn run(args: CompareArgs) -> anyhow::Result<ExitCode> {
-    let a = read_image(&args.a)?;
-    let b = read_image(&args.b)?;
-    let cmp = compare_images(&a, &b, args.threshold)?;
+    // Float files compare on their values; two 8-bit files on their levels
+    // exactly (v / 255 in f32 would blur a threshold of whole levels).
+    let float = ImageFile::of(&args.a)?.is_float() || ImageFile::of(&args.b)?.is_float();
+    let cmp = if float {
+        let a = read_framebuffer(&args.a)?;
+        let b = read_framebuffer(&args.b)?;
+        compare_framebuffers(&a, &b, args.threshold)?
+    } else {
+        compare_images(&read_image(&args.a)?, &read_image(&args.b)?, args.threshold)?
+    };
     println!("{cmp}");
     if let Some(path) = &args.diff {
         write_image(&cmp.diff_image(), path, 95)?;

@@ -5,9 +5,10 @@ use std::time::{Duration, Instant};
 use anyhow::Context as _;
 use clap::Args;
 use glint::cpu::Precision;
-use glint::framebuffer::{write_image, DEFAULT_JPEG_QUALITY};
+use glint::framebuffer::{write_framebuffer, DEFAULT_JPEG_QUALITY};
 use glint::gpu::DeviceSelector;
 use glint::methods::Methods;
+use glint::progressive::{PassReport, StopAt, Stopped};
 use glint::render::{pixel_path, render, Backend, RenderOptions, Renderer};
 use glint::scene::Scene;
 use indicatif::{ProgressBar, ProgressStyle};
@@ -18,7 +19,8 @@ use super::{print_warnings, BackendArg, EffectArgs, MethodsArg, PrecisionArg};
 pub struct RenderArgs {
     /// Scene file in the classic format.
     scene: PathBuf,
-    /// Output image (.jpg, .jpeg or .png); default: <scene stem>.jpg here.
+    /// Output image (.jpg, .jpeg, .png, or .exr for float values); default:
+    /// <scene stem>.jpg here.
     out: Option<PathBuf>,
     /// Output image, as an option.
     #[arg(short, long, conflicts_with = "out")]
@@ -89,6 +91,25 @@ pub struct RenderArgs {
     /// settings) instead of one specialised for the scene; for comparisons.
     #[arg(long)]
     generic_shader: bool,
+    /// Render in passes of the scene's samples per pixel (each with its own
+    /// seed) until the estimated RMSE of the image (linear values, 0-1,
+    /// from the difference of the even and odd passes) is at most E. Exit 1
+    /// if the sample cap comes first (the image is still written).
+    #[arg(long, value_name = "E", value_parser = parse_error_target, conflicts_with_all = ["pixel", "frames"])]
+    target_error: Option<f64>,
+    /// Render in passes (as --target-error) until the next pass would end
+    /// after S seconds; with --target-error, whichever comes first.
+    #[arg(long, value_name = "S", value_parser = parse_seconds, conflicts_with_all = ["pixel", "frames"])]
+    time_limit: Option<f64>,
+}
+
+fn parse_error_target(s: &str) -> Result<f64, String> {
+    match s.trim().parse::<f64>() {
+        Ok(v) if v.is_finite() && v > 0.0 && v < 1.0 => Ok(v),
+        _ => Err(format!(
+            "expected an RMSE on linear values between 0 and 1 (e.g. 0.005), found `{s}`"
+        )),
+    }
 }
 
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
@@ -228,6 +249,10 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         return Ok(ExitCode::SUCCESS);
     }
 
+    if args.target_error.is_some() || args.time_limit.is_some() {
+        return render_progressive(&scene, &options, &args, &out, defaulted, parse_time);
+    }
+
     let bar = ProgressBar::new(0);
     bar.set_style(
         ProgressStyle::with_template("{spinner} rendering [{bar:30}] {pos}/{len} {elapsed}")
@@ -250,7 +275,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
     }
     validation_verdict(output.validation_messages)?;
     let write_start = Instant::now();
-    write_image(&output.framebuffer.to_rgb8(), &out, args.quality)
+    write_framebuffer(&output.framebuffer, &out, args.quality)
         .with_context(|| format!("rendering {}", args.scene.display()))?;
     let write_time = write_start.elapsed();
     let mut timings = output.timings;
@@ -274,6 +299,110 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         println!("memory:\n  {} beyond the scene and its BVH", output.memory);
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// `--target-error` / `--time-limit`: passes until one of them says stop.
+fn render_progressive(
+    scene: &Scene,
+    options: &RenderOptions,
+    args: &RenderArgs,
+    out: &Path,
+    defaulted: bool,
+    parse_time: Duration,
+) -> anyhow::Result<ExitCode> {
+    let stop = StopAt {
+        target_rmse: args.target_error,
+        time_limit: args.time_limit.map(Duration::from_secs_f64),
+    };
+    let renderer = Renderer::new(options)?;
+    if let Some(note) = renderer.note() {
+        eprintln!("note: {note}");
+    }
+    let bar = ProgressBar::new_spinner();
+    bar.set_style(
+        ProgressStyle::with_template("{spinner} {msg} {elapsed}").expect("valid template"),
+    );
+    let verbose = args.verbose;
+    let mut on_pass = |r: &PassReport| {
+        let estimate = r
+            .estimated_rmse
+            .map_or_else(|| "-".to_string(), |e| format!("{e:.5}"));
+        let line = format!(
+            "pass {}, {} samples per pixel, estimated RMSE {estimate}",
+            r.passes, r.samples_per_pixel
+        );
+        if verbose {
+            bar.suspend(|| eprintln!("{line}, {:.2} s", r.elapsed.as_secs_f64()));
+        }
+        bar.set_message(line);
+        bar.tick();
+    };
+    let result = renderer.render_progressive(scene, &stop, &mut on_pass);
+    bar.finish_and_clear();
+    let done = result?;
+    validation_verdict(done.output.validation_messages)?;
+    write_framebuffer(&done.output.framebuffer, out, args.quality)
+        .with_context(|| format!("rendering {}", args.scene.display()))?;
+    let r = done.report;
+    let estimate = r
+        .estimated_rmse
+        .map_or_else(|| "none (one pass)".to_string(), |e| format!("{e:.5}"));
+    println!(
+        "wrote {}{} ({}x{}, {}, {} passes, {} samples per pixel, estimated RMSE {estimate}, {:.2} s)",
+        out.display(),
+        if defaulted {
+            " (default name: <scene>.jpg)"
+        } else {
+            ""
+        },
+        args.width,
+        args.height,
+        done.output.renderer,
+        r.passes,
+        r.samples_per_pixel,
+        (r.elapsed + parse_time).as_secs_f64()
+    );
+    if args.verbose {
+        println!("timings (all passes):\n{}", done.output.timings);
+    }
+    let reached = match (args.target_error, r.estimated_rmse) {
+        (Some(t), Some(e)) => e <= t,
+        (Some(_), None) => false,
+        (None, _) => true,
+    };
+    match done.stopped {
+        Stopped::Target => println!("stopped: the estimate reached the target"),
+        Stopped::Noiseless => println!(
+            "stopped: two passes came out identical (nothing in the scene is random), so the image is converged"
+        ),
+        Stopped::TimeLimit if reached => println!("stopped: the time limit"),
+        Stopped::TimeLimit => println!(
+            "stopped: the time limit, before the target {} was reached",
+            args.target_error.unwrap_or_default()
+        ),
+        Stopped::MaxSamples => {
+            if !reached {
+                eprintln!(
+                    "error: stopped at the cap of {} samples per pixel with the estimate above the target {}; \
+                     the image was written, but is not as accurate as asked (raise --spp for larger passes, or a larger target)",
+                    glint::scene::Effects::MAX_SPP,
+                    args.target_error.unwrap_or_default()
+                );
+                return Ok(ExitCode::from(1));
+            }
+            println!("stopped: the cap of {} samples per pixel", glint::scene::Effects::MAX_SPP);
+        }
+    }
+    if out_is_8_bit(out) && r.estimated_rmse.is_some_and(|e| e < 0.002) {
+        println!(
+            "note: 8-bit output adds about 0.0011 RMSE of rounding; write .exr to keep the float image"
+        );
+    }
+    Ok(ExitCode::SUCCESS)
+}
+
+fn out_is_8_bit(out: &Path) -> bool {
+    glint::framebuffer::ImageFile::of(out).is_ok_and(|f| !f.is_float())
 }
 
 /// A render the validation layer complained about may be wrong: an error
@@ -348,7 +477,7 @@ fn animate(
         validation_verdict(renderer.validation_messages())
             .with_context(|| format!("rendering frame {i}"))?;
         let path = dir.join(format!("{i:0digits$}.{ext}"));
-        write_image(&output.framebuffer.to_rgb8(), &path, args.quality)
+        write_framebuffer(&output.framebuffer, &path, args.quality)
             .with_context(|| format!("writing frame {i}"))?;
         if args.verbose {
             bar.println(format!("{}:\n{}", path.display(), output.timings));
