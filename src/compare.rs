@@ -149,7 +149,7 @@ fn compare_levels(
     }
 }
 
-fn flip_mean(a: &RgbImage, b: &RgbImage) -> f32 {
+pub fn flip_mean(a: &RgbImage, b: &RgbImage) -> f32 {
     if a.width() == 0 || a.height() == 0 {
         return 0.0;
     }

@@ -9,6 +9,7 @@
 //! framebuffer::write_image; compare::compare_images
 //! ```
 
+pub mod accuracy;
 pub mod bench;
 pub mod bvh;
 pub mod camera;

@@ -643,3 +643,75 @@ fn time_limit_on_a_noiseless_scene_stops_at_two_passes() {
         stdout(&o)
     );
 }
+
+/// `glint accuracy` sweeps what the scene calls for, writes the CSV (its
+/// header as documented, a row per point), the Markdown report and the
+/// plot, and reuses its cached reference on a second run.
+#[test]
+fn accuracy_sweeps_and_caches_its_reference() {
+    let d = tmp();
+    let scene = repo_path("scenes/effects/soft_shadows.scene")
+        .display()
+        .to_string();
+    let args = [
+        "accuracy",
+        &scene,
+        "--out",
+        "acc",
+        "--backend",
+        "cpu",
+        "--width",
+        "24",
+        "--height",
+        "16",
+        "--repeat",
+        "1",
+    ];
+    let o = glint(&args, d.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("cpu: cheapest with FLIP mean <= 0.01"),
+        "{}",
+        stdout(&o)
+    );
+    let csv = std::fs::read_to_string(d.path().join("acc/accuracy.csv")).expect("csv");
+    let mut lines = csv.lines();
+    let header = lines.next().expect("header");
+    assert!(
+        header.starts_with("knob,value,backend,precision,"),
+        "{header}"
+    );
+    for column in ["time_ms", "rmse", "flip"] {
+        assert!(header.split(',').any(|c| c == column), "{header}");
+    }
+    let rows: Vec<&str> = lines.collect();
+    // scene, shadow samples 1..128, naive, f64.
+    assert_eq!(rows.len(), 11, "{csv}");
+    assert!(
+        rows.iter()
+            .any(|r| r.starts_with("shadow_samples,1,cpu,f32,")),
+        "{csv}"
+    );
+    let md = std::fs::read_to_string(d.path().join("acc/accuracy.md")).expect("md");
+    assert!(
+        md.contains("## shadow_samples") && md.contains("## Equal time"),
+        "{md}"
+    );
+    let svg = std::fs::read_to_string(d.path().join("acc/accuracy.svg")).expect("svg");
+    assert!(
+        svg.starts_with("<svg") && svg.contains("<polyline"),
+        "{svg}"
+    );
+    assert!(
+        stderr(&o).contains("rendering the reference"),
+        "{}",
+        stderr(&o)
+    );
+    let again = glint(&args, d.path());
+    assert_eq!(again.status.code(), Some(0), "{}", stderr(&again));
+    assert!(
+        stderr(&again).contains("(cached)") && !stderr(&again).contains("rendering the reference"),
+        "{}",
+        stderr(&again)
+    );
+}

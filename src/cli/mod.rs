@@ -1,5 +1,6 @@
 //! Argument definitions (clap) and dispatch to one module per subcommand.
 
+mod accuracy;
 mod bench;
 mod compare;
 mod devices;
@@ -31,6 +32,9 @@ enum Command {
     Compare(compare::CompareArgs),
     /// Time renders per scene and backend (medians).
     Bench(bench::BenchArgs),
+    /// What accuracy costs in time: every knob the scene calls for swept,
+    /// each point timed and measured against a reference.
+    Accuracy(accuracy::AccuracyArgs),
     /// List the Vulkan devices found.
     Devices,
     /// Show what a scene holds, what it calls for and the shader it gets.
@@ -125,6 +129,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Render(args) => render::run(args),
         Command::Compare(args) => compare::run(args),
         Command::Bench(args) => bench::run(args),
+        Command::Accuracy(args) => accuracy::run(args),
         Command::Devices => devices::run(),
         Command::Info {
             scene,

@@ -1,0 +1,563 @@
+//! What accuracy costs in time (`glint accuracy`): every knob the scene
+//! calls for swept one at a time (the others at the scene's values), on
+//! each backend, each point timed and measured against a reference.
+
+use std::fmt::Write as _;
+use std::time::Duration;
+
+use crate::compare::flip_mean;
+use crate::cpu::Precision;
+use crate::framebuffer::Framebuffer;
+use crate::info::Features;
+use crate::methods::Methods;
+use crate::scene::{Effects, Scene, Settings};
+
+/// Where a point renders.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Target {
+    Gpu,
+    Cpu(Precision),
+}
+
+impl Target {
+    pub fn backend(self) -> &'static str {
+        match self {
+            Target::Gpu => "gpu",
+            Target::Cpu(_) => "cpu",
+        }
+    }
+
+    pub fn precision(self) -> &'static str {
+        match self {
+            Target::Cpu(Precision::F64) => "f64",
+            _ => "f32",
+        }
+    }
+}
+
+/// One setting to measure: `knob` at `value`, everything else at the
+/// scene's values.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Point {
+    pub knob: &'static str,
+    pub value: String,
+    pub target: Target,
+    pub methods: Methods,
+    /// The scene's settings with this point's change.
+    pub effects: Effects,
+}
+
+impl Point {
+    /// The settings that make a render this point.
+    pub fn settings(&self) -> Settings {
+        Settings {
+            reflect: Some(self.effects.reflect_depth),
+            spp: Some(self.effects.spp),
+            shadow_samples: Some(self.effects.shadow_samples),
+            shutter: Some(self.effects.shutter),
+            seed: Some(self.effects.seed),
+            fps: Some(self.effects.fps),
+        }
+    }
+}
+
+/// Powers of two from 1 to `top`, with `top` itself.
+fn doublings(top: u32) -> Vec<u32> {
+    let mut v: Vec<u32> = std::iter::successors(Some(1u32), |&x| x.checked_mul(2))
+        .take_while(|&x| x < top)
+        .collect();
+    v.push(top);
+    v
+}
+
+/// The sweep for `scene` on `targets` (GPU and/or CPU f32): the scene's
+/// own setting on each; spp when the scene samples pixels or time, shadow
+/// samples when it has area lights, reflection depth when it reflects, each
+/// from 1 (0 for reflection) to 4x the scene's value (at least 16); the CPU
+/// in f64 as well; the naive methods.
+pub fn plan(scene: &Scene, effects: &Effects, targets: &[Target]) -> Vec<Point> {
+    let features = Features::of(scene, effects);
+    let mut out = Vec::new();
+    for &target in targets {
+        let point = |knob: &'static str, value: String, effects: Effects| Point {
+            knob,
+            value,
+            target,
+            methods: Methods::Robust,
+            effects,
+        };
+        out.push(point("scene", "scene".into(), *effects));
+        if features.multisample || features.motion_blur {
+            let top = (effects.spp * 4).clamp(16, Effects::MAX_SPP);
+            for spp in doublings(top) {
+                out.push(point("spp", spp.to_string(), Effects { spp, ..*effects }));
+            }
+        }
+        if features.area_lights {
+            let top = (effects.shadow_samples * 4).clamp(16, Effects::MAX_SHADOW_SAMPLES);
+            for shadow_samples in doublings(top) {
+                out.push(point(
+                    "shadow_samples",
+                    shadow_samples.to_string(),
+                    Effects {
+                        shadow_samples,
+                        ..*effects
+                    },
+                ));
+            }
+        }
+        if features.reflection {
+            for reflect_depth in 0..=effects.reflect_depth {
+                out.push(point(
+                    "reflect",
+                    reflect_depth.to_string(),
+                    Effects {
+                        reflect_depth,
+                        ..*effects
+                    },
+                ));
+            }
+        }
+        out.push(Point {
+            methods: Methods::Naive,
+            ..point("methods", "naive".into(), *effects)
+        });
+        if target == Target::Cpu(Precision::F32) {
+            out.push(Point {
+                target: Target::Cpu(Precision::F64),
+                ..point("precision", "f64".into(), *effects)
+            });
+        }
+    }
+    out
+}
+
+/// Errors of an image against the reference, on linear values (both
+/// clamped to [0, 1]).
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Errors {
+    pub rmse: f64,
+    /// Mean of (x - r)^2 / (r^2 + 0.01) per channel.
+    pub relmse: f64,
+    /// dB; infinite for an exact image.
+    pub psnr: f64,
+    /// Mean NVIDIA FLIP (LDR, on the 8-bit conversions).
+    pub flip: f64,
+    /// 99th percentile of the per-pixel largest channel error.
+    pub p99: f64,
+    /// Pixels with NaN or infinity.
+    pub nan: usize,
+}
+
+pub fn errors(image: &Framebuffer, reference: &Framebuffer) -> Errors {
+    let clamp = |v: f32| f64::from(v).clamp(0.0, 1.0);
+    let mut sq = 0.0;
+    let mut rel = 0.0;
+    let mut worst: Vec<f64> = Vec::with_capacity(image.pixels.len());
+    for (p, r) in image.pixels.iter().zip(&reference.pixels) {
+        let mut m: f64 = 0.0;
+        for c in 0..3 {
+            let (x, y) = (clamp(p[c]), clamp(r[c]));
+            let d = if p[c].is_finite() { x - y } else { 1.0 };
+            sq += d * d;
+            rel += d * d / (y * y + 0.01);
+            m = m.max(d.abs());
+        }
+        worst.push(m);
+    }
+    let values = (image.pixels.len() * 3).max(1) as f64;
+    worst.sort_by(f64::total_cmp);
+    let p99 = worst
+        .get(((worst.len() as f64 * 0.99) as usize).min(worst.len().saturating_sub(1)))
+        .copied()
+        .unwrap_or(0.0);
+    let mse = sq / values;
+    Errors {
+        rmse: mse.sqrt(),
+        relmse: rel / values,
+        psnr: if mse == 0.0 {
+            f64::INFINITY
+        } else {
+            -10.0 * mse.log10()
+        },
+        flip: f64::from(flip_mean(&reference.to_rgb8(), &image.to_rgb8())),
+        p99,
+        nan: image.non_finite_count(),
+    }
+}
+
+/// A point rendered and measured.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Measured {
+    pub point: Point,
+    /// Median wall time of one render (BVH, upload, dispatch, readback).
+    pub time: Duration,
+    /// Median time of the GPU's dispatches alone (GPU points).
+    pub dispatch: Option<Duration>,
+    pub errors: Errors,
+}
+
+pub const CSV_HEADER: &str = "knob,value,backend,precision,methods,spp,shadow_samples,reflect,time_ms,dispatch_ms,rmse,relmse,psnr,flip,p99,nan";
+
+pub fn csv(rows: &[Measured]) -> String {
+    let mut s = format!("{CSV_HEADER}\n");
+    for m in rows {
+        let p = &m.point;
+        let e = &m.errors;
+        let _ = writeln!(
+            s,
+            "{},{},{},{},{},{},{},{},{:.3},{},{:.6e},{:.6e},{:.3},{:.6},{:.6},{}",
+            p.knob,
+            p.value,
+            p.target.backend(),
+            p.target.precision(),
+            p.methods,
+            p.effects.spp,
+            p.effects.shadow_samples,
+            p.effects.reflect_depth,
+            ms(m.time),
+            m.dispatch
+                .map_or(String::new(), |d| format!("{:.3}", ms(d))),
+            e.rmse,
+            e.relmse,
+            e.psnr,
+            e.flip,
+            e.p99,
+            e.nan
+        );
+    }
+    s
+}
+
+fn ms(d: Duration) -> f64 {
+    d.as_secs_f64() * 1e3
+}
+
+/// Settings a user would choose: the naive methods are there to show what
+/// the robust ones fix (they fail the hard cases), never to recommend.
+fn recommendable(m: &Measured, backend: &str) -> bool {
+    m.point.target.backend() == backend && m.point.methods == Methods::Robust
+}
+
+/// The points no other point on the same backend beats in both time and
+/// RMSE, fastest first: what an equal-time comparison keeps.
+pub fn pareto(rows: &[Measured], backend: &str) -> Vec<Measured> {
+    let mut on: Vec<&Measured> = rows.iter().filter(|m| recommendable(m, backend)).collect();
+    on.sort_by(|a, b| {
+        a.time
+            .cmp(&b.time)
+            .then(a.errors.rmse.total_cmp(&b.errors.rmse))
+    });
+    let mut out: Vec<Measured> = Vec::new();
+    for m in on {
+        if out.last().is_none_or(|l| m.errors.rmse < l.errors.rmse) {
+            out.push(m.clone());
+        }
+    }
+    out
+}
+
+/// The fastest point on `backend` (robust methods) whose FLIP mean is at
+/// most `target`.
+pub fn cheapest(rows: &[Measured], backend: &str, target: f64) -> Option<Measured> {
+    rows.iter()
+        .filter(|m| recommendable(m, backend) && m.errors.flip <= target)
+        .min_by_key(|m| m.time)
+        .cloned()
+}
+
+fn label(m: &Measured) -> String {
+    let p = &m.point;
+    let mut s = format!("{}={}", p.knob, p.value);
+    if p.knob == "scene" {
+        s = "scene's settings".into();
+    }
+    s
+}
+
+/// The report: a table per knob (equal samples: value by backend), the
+/// Pareto front per backend (equal time), the cheapest setting reaching
+/// `target`.
+pub fn markdown(rows: &[Measured], header: &str, target: f64) -> String {
+    let mut s = format!("# Accuracy against time\n\n{header}\n");
+    let mut knobs: Vec<&str> = Vec::new();
+    for m in rows {
+        if !knobs.contains(&m.point.knob) {
+            knobs.push(m.point.knob);
+        }
+    }
+    for knob in knobs {
+        let _ = write!(
+            s,
+            "\n## {knob}\n\n| value | backend | precision | methods | time (ms) | dispatch (ms) | RMSE | relMSE | PSNR (dB) | FLIP | p99 | NaN |\n|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n"
+        );
+        for m in rows.iter().filter(|m| m.point.knob == knob) {
+            let e = &m.errors;
+            let _ = writeln!(
+                s,
+                "| {} | {} | {} | {} | {:.1} | {} | {:.5} | {:.2e} | {:.1} | {:.4} | {:.4} | {} |",
+                m.point.value,
+                m.point.target.backend(),
+                m.point.target.precision(),
+                m.point.methods,
+                ms(m.time),
+                m.dispatch.map_or("-".into(), |d| format!("{:.1}", ms(d))),
+                e.rmse,
+                e.relmse,
+                e.psnr,
+                e.flip,
+                e.p99,
+                e.nan
+            );
+        }
+    }
+    let _ = write!(
+        s,
+        "\n## Equal time\n\nPer backend, the settings (robust methods) no other beats in both time and RMSE, fastest first: at a given time, the best error to be had.\n"
+    );
+    for backend in ["gpu", "cpu"] {
+        let front = pareto(rows, backend);
+        if front.is_empty() {
+            continue;
+        }
+        let _ = write!(
+            s,
+            "\n| {backend}: setting | time (ms) | RMSE | FLIP |\n|---|---:|---:|---:|\n"
+        );
+        for m in &front {
+            let _ = writeln!(
+                s,
+                "| {} ({}) | {:.1} | {:.5} | {:.4} |",
+                label(m),
+                m.point.target.precision(),
+                ms(m.time),
+                m.errors.rmse,
+                m.errors.flip
+            );
+        }
+    }
+    let _ = write!(
+        s,
+        "\n## Cheapest setting with FLIP mean at most {target}\n\n"
+    );
+    for backend in ["gpu", "cpu"] {
+        if !rows.iter().any(|m| m.point.target.backend() == backend) {
+            continue;
+        }
+        let _ = match cheapest(rows, backend, target) {
+            Some(m) => writeln!(
+                s,
+                "- {backend}: {} ({}), {:.1} ms, FLIP {:.4}, RMSE {:.5}",
+                label(&m),
+                m.point.target.precision(),
+                ms(m.time),
+                m.errors.flip,
+                m.errors.rmse
+            ),
+            None => writeln!(s, "- {backend}: no setting measured reaches it"),
+        };
+    }
+    s
+}
+
+/// A log-log plot of RMSE against time, one line per knob and backend, as
+/// SVG (text is drawn by whatever shows it; no font is needed here).
+pub fn svg(rows: &[Measured], title: &str) -> String {
+    let (w, h) = (720.0, 480.0);
+    let (left, right, top, bottom) = (70.0, 200.0, 40.0, 50.0);
+    let pts: Vec<(f64, f64)> = rows
+        .iter()
+        .filter(|m| m.errors.rmse > 0.0)
+        .map(|m| (ms(m.time).max(1e-3).log10(), m.errors.rmse.log10()))
+        .collect();
+    let span = |f: fn(&(f64, f64)) -> f64| {
+        let lo = pts.iter().map(f).fold(f64::INFINITY, f64::min);
+        let hi = pts.iter().map(f).fold(f64::NEG_INFINITY, f64::max);
+        if lo.is_finite() {
+            (lo.floor(), hi.ceil().max(lo.floor() + 1.0))
+        } else {
+            (0.0, 1.0)
+        }
+    };
+    let (x0, x1) = span(|p| p.0);
+    let (y0, y1) = span(|p| p.1);
+    let px = |x: f64| left + (x - x0) / (x1 - x0) * (w - left - right);
+    let py = |y: f64| h - bottom - (y - y0) / (y1 - y0) * (h - top - bottom);
+    let mut s = format!(
+        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"{w}\" height=\"{h}\" fill=\"white\"/>\n<text x=\"{left}\" y=\"22\" font-size=\"14\">{}</text>\n",
+        escape(title)
+    );
+    for d in (x0 as i32)..=(x1 as i32) {
+        let x = px(f64::from(d));
+        let _ = writeln!(
+            s,
+            "<line x1=\"{x:.1}\" y1=\"{top}\" x2=\"{x:.1}\" y2=\"{:.1}\" stroke=\"#ddd\"/><text x=\"{x:.1}\" y=\"{:.1}\" text-anchor=\"middle\">1e{d}</text>",
+            h - bottom,
+            h - bottom + 16.0
+        );
+    }
+    for d in (y0 as i32)..=(y1 as i32) {
+        let y = py(f64::from(d));
+        let _ = writeln!(
+            s,
+            "<line x1=\"{left}\" y1=\"{y:.1}\" x2=\"{:.1}\" y2=\"{y:.1}\" stroke=\"#ddd\"/><text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"end\">1e{d}</text>",
+            w - right,
+            left - 6.0,
+            y + 4.0
+        );
+    }
+    let _ = writeln!(
+        s,
+        "<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">render time (ms)</text><text x=\"16\" y=\"{:.1}\" transform=\"rotate(-90 16 {:.1})\" text-anchor=\"middle\">RMSE</text>",
+        (left + w - right) / 2.0,
+        h - 12.0,
+        (top + h - bottom) / 2.0,
+        (top + h - bottom) / 2.0
+    );
+    let colours = [
+        "#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf",
+    ];
+    let mut series: Vec<(String, Vec<&Measured>)> = Vec::new();
+    for m in rows.iter().filter(|m| m.errors.rmse > 0.0) {
+        let name = format!("{} ({})", m.point.knob, m.point.target.backend());
+        match series.iter_mut().find(|(n, _)| *n == name) {
+            Some((_, v)) => v.push(m),
+            None => series.push((name, vec![m])),
+        }
+    }
+    for (i, (name, ms_)) in series.iter().enumerate() {
+        let colour = colours[i % colours.len()];
+        let coords: Vec<String> = ms_
+            .iter()
+            .map(|m| {
+                format!(
+                    "{:.1},{:.1}",
+                    px(ms(m.time).max(1e-3).log10()),
+                    py(m.errors.rmse.log10())
+                )
+            })
+            .collect();
+        let _ = writeln!(
+            s,
+            "<polyline points=\"{}\" fill=\"none\" stroke=\"{colour}\" stroke-width=\"2\"/>",
+            coords.join(" ")
+        );
+        for c in &coords {
+            let (x, y) = c.split_once(',').unwrap_or(("0", "0"));
+            let _ = writeln!(
+                s,
+                "<circle cx=\"{x}\" cy=\"{y}\" r=\"3\" fill=\"{colour}\"/>"
+            );
+        }
+        let ly = top + 10.0 + 18.0 * i as f64;
+        let _ = writeln!(
+            s,
+            "<line x1=\"{:.1}\" y1=\"{ly:.1}\" x2=\"{:.1}\" y2=\"{ly:.1}\" stroke=\"{colour}\" stroke-width=\"2\"/><text x=\"{:.1}\" y=\"{:.1}\">{}</text>",
+            w - right + 10.0,
+            w - right + 30.0,
+            w - right + 36.0,
+            ly + 4.0,
+            escape(name)
+        );
+    }
+    s.push_str("</svg>\n");
+    s
+}
+
+fn escape(s: &str) -> String {
+    s.replace('&', "&amp;")
+        .replace('<', "&lt;")
+        .replace('>', "&gt;")
+}
+
+/// The median of `times` (the upper one of an even count).
+pub fn median(mut times: Vec<Duration>) -> Duration {
+    times.sort();
+    times.get(times.len() / 2).copied().unwrap_or_default()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn fb(v: f32) -> Framebuffer {
+        Framebuffer {
+            width: 10,
+            height: 10,
+            pixels: vec![[v; 3]; 100],
+        }
+    }
+
+    #[test]
+    fn errors_of_a_uniform_offset() {
+        let e = errors(&fb(0.6), &fb(0.5));
+        assert!((e.rmse - 0.1).abs() < 1e-6, "{e:?}");
+        assert!((e.psnr - 20.0).abs() < 1e-4, "{e:?}");
+        assert!((e.relmse - 0.01 / 0.26).abs() < 1e-6, "{e:?}");
+        assert!((e.p99 - 0.1).abs() < 1e-6, "{e:?}");
+        assert_eq!(e.nan, 0);
+        let same = errors(&fb(0.5), &fb(0.5));
+        assert_eq!((same.rmse, same.flip, same.psnr), (0.0, 0.0, f64::INFINITY));
+        let mut bad = fb(0.5);
+        bad.pixels[3] = [f32::NAN; 3];
+        assert_eq!(errors(&bad, &fb(0.5)).nan, 1);
+    }
+
+    #[test]
+    fn plan_sweeps_what_the_scene_calls_for() {
+        let text = "2\namb: 0 0 0\nspp: 4\nsphere pos: 0 0 -3 rad: 1 dif: 1 1 1 spe: 0 0 0 shi: 1\nlight pos: 0 2 0 col: 1 1 1\n";
+        let scene = crate::scene::parse_scene(text.as_bytes(), "t.scene").expect("parses");
+        let effects = Effects::resolve(&scene.settings);
+        let points = plan(&scene, &effects, &[Target::Cpu(Precision::F32)]);
+        let knobs: Vec<(&str, &str)> = points.iter().map(|p| (p.knob, p.value.as_str())).collect();
+        // spp 1..16 (4x the scene's 4, at least 16); no area lights, no
+        // reflection (ks is 0).
+        assert_eq!(
+            knobs,
+            [
+                ("scene", "scene"),
+                ("spp", "1"),
+                ("spp", "2"),
+                ("spp", "4"),
+                ("spp", "8"),
+                ("spp", "16"),
+                ("methods", "naive"),
+                ("precision", "f64")
+            ]
+        );
+        assert_eq!(points[3].effects.spp, 4);
+        assert_eq!(points[7].target, Target::Cpu(Precision::F64));
+    }
+
+    #[test]
+    fn pareto_keeps_what_nothing_beats() {
+        let m = |t: u64, rmse: f64| Measured {
+            point: Point {
+                knob: "spp",
+                value: t.to_string(),
+                target: Target::Gpu,
+                methods: Methods::Robust,
+                effects: Effects::default(),
+            },
+            time: Duration::from_millis(t),
+            dispatch: None,
+            errors: Errors {
+                rmse,
+                flip: rmse,
+                ..Errors::default()
+            },
+        };
+        let rows = [m(10, 0.1), m(20, 0.2), m(30, 0.05), m(40, 0.01)];
+        let front: Vec<u64> = pareto(&rows, "gpu")
+            .iter()
+            .map(|m| m.time.as_millis() as u64)
+            .collect();
+        assert_eq!(front, [10, 30, 40]);
+        assert_eq!(
+            cheapest(&rows, "gpu", 0.06).map(|m| m.time),
+            Some(Duration::from_millis(30))
+        );
+        assert_eq!(cheapest(&rows, "cpu", 0.06), None);
+        assert!(csv(&rows).starts_with("knob,value,backend,precision,methods,"));
+    }
+}
