@@ -12,7 +12,9 @@ use crate::layout::GpuScene;
 use crate::memory::{self, MemoryNeed};
 use crate::methods::Methods;
 use crate::probe::{PathRecord, ProbeImage};
-use crate::progressive::{Accumulator, PassReport, Progressive, StopAt};
+use crate::progressive::{
+    Accumulator, Blocks, PassReport, Progressive, StopAt, Stopped, MIN_PASSES_FOR_TARGET,
+};
 use crate::scene::{Effects, Scene, Settings};
 use crate::timing::Timings;
 use crate::Error;
@@ -266,7 +268,7 @@ impl Renderer {
         let mut timings = self.take_setup_timings();
         let p = self.prepare(scene, &mut timings);
         let packed = self.pack(scene, &p, &mut timings);
-        self.render_prepared(scene, &p, packed.as_ref(), timings, progress)
+        self.render_prepared(scene, &p, packed.as_ref(), timings, None, progress)
     }
 
     /// Renders `scene` in passes of its own samples per pixel, each with a
@@ -285,6 +287,7 @@ impl Renderer {
         let base_seed = p.effects.seed;
         let spp = p.effects.spp;
         let mut acc = Accumulator::new(p.camera.width, p.camera.height);
+        let mut blocks = Blocks::all(p.camera.width, p.camera.height);
         let mut history: Vec<PassReport> = Vec::new();
         let mut last: Option<RenderOutput> = None;
         let stopped = loop {
@@ -295,19 +298,35 @@ impl Renderer {
             } else {
                 Timings::default()
             };
-            let out = self.render_prepared(scene, &p, packed.as_ref(), pass_timings, &|_, _| {})?;
-            acc.add(&out.framebuffer);
+            let some = (!blocks.all_active()).then_some(&blocks);
+            let out =
+                self.render_prepared(scene, &p, packed.as_ref(), pass_timings, some, &|_, _| {})?;
+            acc.add_where(&out.framebuffer, &|x, y| blocks.is_active(x, y));
+            match last.as_mut() {
+                None => last = Some(out),
+                Some(l) => l.timings.extend(&out.timings),
+            }
+            let mut done_blocks = false;
+            if let (true, Some(target)) = (stop.adaptive, stop.aim()) {
+                if acc.passes() >= MIN_PASSES_FOR_TARGET {
+                    match acc.adaptive_blocks(&blocks, target) {
+                        Some(active) => blocks.active = active,
+                        None => done_blocks = true,
+                    }
+                }
+            }
             let report = PassReport {
                 passes: acc.passes(),
-                samples_per_pixel: acc.passes() * spp,
+                samples_per_pixel: acc.max_passes() * spp,
+                mean_samples: acc.mean_passes() * f64::from(spp),
+                active_blocks: [blocks.active_count(), blocks.active.len()],
                 elapsed: start.elapsed(),
                 estimated_rmse: acc.estimated_rmse(),
             };
             on_pass(&report);
             history.push(report);
-            match last.as_mut() {
-                None => last = Some(out),
-                Some(l) => l.timings.extend(&out.timings),
+            if done_blocks {
+                break Stopped::Target;
             }
             if let Some(reason) = stop.verdict(&history, spp) {
                 break reason;
@@ -346,6 +365,7 @@ impl Renderer {
         p: &Prepared,
         packed: Option<&GpuScene>,
         mut timings: Timings,
+        blocks: Option<&Blocks>,
         progress: &(dyn Fn(u64, u64) + Sync),
     ) -> Result<RenderOutput, Error> {
         let mut need = MemoryNeed::image(p.camera.width, p.camera.height);
@@ -368,13 +388,14 @@ impl Renderer {
                 );
                 need.add_gpu(packed, texels, host_device);
                 need.check(memory::available())?;
-                let (framebuffer, gpu_timings) = renderer.render(
-                    packed,
-                    &p.camera,
-                    self.options.background,
-                    &self.gpu_options(p),
-                    progress,
-                )?;
+                let options = self.gpu_options(p);
+                let bg = self.options.background;
+                let (framebuffer, gpu_timings) = match blocks {
+                    Some(b) => {
+                        renderer.render_rects(packed, &p.camera, bg, &options, &b.rects())?
+                    }
+                    None => renderer.render(packed, &p.camera, bg, &options, progress)?,
+                };
                 timings.extend(&gpu_timings);
                 framebuffer
             }
@@ -382,7 +403,12 @@ impl Renderer {
                 need.check(memory::available())?;
                 let start = Instant::now();
                 let options = self.cpu_options(p, *precision);
-                let framebuffer = cpu::render(scene, &p.bvh, &p.camera, &options, progress);
+                let framebuffer = match blocks {
+                    Some(b) => cpu::render_where(scene, &p.bvh, &p.camera, &options, &|x, y| {
+                        b.is_active(x, y)
+                    }),
+                    None => cpu::render(scene, &p.bvh, &p.camera, &options, progress),
+                };
                 timings.add("cpu render", start.elapsed());
                 framebuffer
             }

@@ -715,3 +715,37 @@ fn accuracy_sweeps_and_caches_its_reference() {
         stderr(&again)
     );
 }
+
+/// `--adaptive` needs a target; with one it reports the mean samples.
+#[test]
+fn adaptive_needs_a_target_and_reports_mean_samples() {
+    let d = tmp();
+    let scene = repo_path("scenes/effects/soft_shadows.scene")
+        .display()
+        .to_string();
+    let o = glint(&["render", &scene, "a.exr", "--adaptive"], d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let o = glint(
+        &[
+            "render",
+            &scene,
+            "a.exr",
+            "--backend",
+            "cpu",
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "--target-error",
+            "0.002",
+            "--adaptive",
+        ],
+        d.path(),
+    );
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(
+        stdout(&o).contains("samples per pixel on average, at most"),
+        "{}",
+        stdout(&o)
+    );
+}

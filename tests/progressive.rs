@@ -22,6 +22,15 @@ fn effect_scene(name: &str) -> Scene {
     glint::scene::read_scene(&path).expect("effect scene parses")
 }
 
+struct Run {
+    size: [u32; 2],
+    backend: Backend,
+    precision: Precision,
+    target: f64,
+    seed: Option<u32>,
+    adaptive: bool,
+}
+
 fn progressive(
     scene: &Scene,
     backend: Backend,
@@ -29,9 +38,24 @@ fn progressive(
     target: f64,
     seed: Option<u32>,
 ) -> Progressive {
+    run(
+        scene,
+        &Run {
+            size: [W, H],
+            backend,
+            precision,
+            target,
+            seed,
+            adaptive: false,
+        },
+    )
+}
+
+fn run(scene: &Scene, r: &Run) -> Progressive {
+    let (backend, precision, target, seed) = (r.backend, r.precision, r.target, r.seed);
     let options = RenderOptions {
-        width: W,
-        height: H,
+        width: r.size[0],
+        height: r.size[1],
         backend,
         precision,
         settings: glint::scene::Settings {
@@ -44,6 +68,7 @@ fn progressive(
     let stop = StopAt {
         target_rmse: Some(target),
         time_limit: Some(Duration::from_secs(300)),
+        adaptive: r.adaptive,
     };
     let renderer = Renderer::new(&options).expect("renderer");
     let done = renderer
@@ -126,4 +151,86 @@ fn a_noiseless_scene_stops_after_two_passes() {
         done.output.framebuffer,
         render_cpu(&scene, W, H, Precision::F32, WHITE)
     );
+}
+
+/// Adaptive passes (`--adaptive`): the estimate still tracks the true
+/// error, the render stops below its target, the GPU and the CPU twin take
+/// the same decisions, and the noise-free parts of the image get fewer
+/// samples than the uniform render needs.
+#[test]
+fn adaptive_passes_reach_the_target_with_fewer_samples() {
+    let size = [96, 64];
+    let mut backends = vec![Backend::Cpu];
+    if gpu().is_some() {
+        backends.push(Backend::Gpu);
+    }
+    // Targets that take more than the first 4 passes.
+    for (name, target) in [("soft_shadows", 0.0006), ("motion_blur", 0.006)] {
+        let scene = effect_scene(name);
+        let at = |backend, precision, target, seed, adaptive| Run {
+            size,
+            backend,
+            precision,
+            target,
+            seed,
+            adaptive,
+        };
+        let reference = run(
+            &scene,
+            &at(
+                Backend::Cpu,
+                Precision::F64,
+                target / 10.0,
+                Some(1 << 20),
+                false,
+            ),
+        );
+        assert_eq!(
+            reference.stopped,
+            Stopped::Target,
+            "{name}: reference converged"
+        );
+        let uniform = run(
+            &scene,
+            &at(Backend::Cpu, Precision::F32, target, None, false),
+        );
+        let mut decisions = Vec::new();
+        for &backend in &backends {
+            let done = run(&scene, &at(backend, Precision::F32, target, None, true));
+            let estimate = done.report.estimated_rmse.expect("estimate");
+            let truth = rmse(&done.output.framebuffer, &reference.output.framebuffer);
+            eprintln!(
+                "{name} adaptive on {backend:?}: {} passes, {:.2} samples per pixel on average (uniform: {}), estimate {estimate:.5}, true {truth:.5} (ratio {:.3})",
+                done.report.passes,
+                done.report.mean_samples,
+                uniform.report.mean_samples,
+                truth / estimate
+            );
+            assert_eq!(done.stopped, Stopped::Target, "{name} on {backend:?}");
+            assert!(estimate <= target);
+            assert!(
+                (1.0 / 1.5..=1.5).contains(&(truth / estimate)),
+                "{name} on {backend:?}: true RMSE {truth} against the estimate {estimate}"
+            );
+            assert!(
+                truth <= target,
+                "{name} on {backend:?}: true RMSE {truth} above {target}"
+            );
+            assert!(
+                done.report.mean_samples < uniform.report.mean_samples,
+                "{name} on {backend:?}: adaptive took {} samples per pixel, uniform {}",
+                done.report.mean_samples,
+                uniform.report.mean_samples
+            );
+            decisions.push(
+                done.history
+                    .iter()
+                    .map(|h| h.active_blocks)
+                    .collect::<Vec<_>>(),
+            );
+        }
+        if let [cpu, gpu] = decisions.as_slice() {
+            assert_eq!(cpu, gpu, "{name}: GPU and CPU chose different blocks");
+        }
+    }
 }

@@ -320,6 +320,7 @@ fn reference(
         time_limit: Some(args.budget.map_or(Duration::from_secs(600), |b| {
             Duration::from_secs_f64(b / 2.0)
         })),
+        adaptive: false,
     };
     eprintln!(
         "rendering the reference: CPU f64 to an estimated RMSE of {REFERENCE_RMSE} (cached in {})",

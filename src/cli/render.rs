@@ -101,6 +101,11 @@ pub struct RenderArgs {
     /// after S seconds; with --target-error, whichever comes first.
     #[arg(long, value_name = "S", value_parser = parse_seconds, conflicts_with_all = ["pixel", "frames"])]
     time_limit: Option<f64>,
+    /// With --target-error: after 4 passes over the whole image, spend
+    /// passes only on the 16x16 blocks whose own estimate is still above
+    /// the target.
+    #[arg(long, requires = "target_error")]
+    adaptive: bool,
 }
 
 fn parse_error_target(s: &str) -> Result<f64, String> {
@@ -313,6 +318,7 @@ fn render_progressive(
     let stop = StopAt {
         target_rmse: args.target_error,
         time_limit: args.time_limit.map(Duration::from_secs_f64),
+        adaptive: args.adaptive,
     };
     let renderer = Renderer::new(options)?;
     if let Some(note) = renderer.note() {
@@ -327,10 +333,16 @@ fn render_progressive(
         let estimate = r
             .estimated_rmse
             .map_or_else(|| "-".to_string(), |e| format!("{e:.5}"));
-        let line = format!(
+        let mut line = format!(
             "pass {}, {} samples per pixel, estimated RMSE {estimate}",
             r.passes, r.samples_per_pixel
         );
+        if r.active_blocks[0] < r.active_blocks[1] {
+            line.push_str(&format!(
+                " ({:.1} samples per pixel on average; next pass: {} of {} blocks)",
+                r.mean_samples, r.active_blocks[0], r.active_blocks[1]
+            ));
+        }
         if verbose {
             bar.suspend(|| eprintln!("{line}, {:.2} s", r.elapsed.as_secs_f64()));
         }
@@ -347,8 +359,16 @@ fn render_progressive(
     let estimate = r
         .estimated_rmse
         .map_or_else(|| "none (one pass)".to_string(), |e| format!("{e:.5}"));
+    let samples = if args.adaptive {
+        format!(
+            "{:.1} samples per pixel on average, at most {}",
+            r.mean_samples, r.samples_per_pixel
+        )
+    } else {
+        format!("{} samples per pixel", r.samples_per_pixel)
+    };
     println!(
-        "wrote {}{} ({}x{}, {}, {} passes, {} samples per pixel, estimated RMSE {estimate}, {:.2} s)",
+        "wrote {}{} ({}x{}, {}, {} passes, {samples}, estimated RMSE {estimate}, {:.2} s)",
         out.display(),
         if defaulted {
             " (default name: <scene>.jpg)"
@@ -359,7 +379,6 @@ fn render_progressive(
         args.height,
         done.output.renderer,
         r.passes,
-        r.samples_per_pixel,
         (r.elapsed + parse_time).as_secs_f64()
     );
     if args.verbose {

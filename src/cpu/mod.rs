@@ -81,6 +81,45 @@ pub fn render(
     }
 }
 
+/// As `render`, only the pixels `keep` says (the others are 0): the CPU
+/// twin of the GPU's `render_rects`.
+pub fn render_where(
+    scene: &Scene,
+    bvh: &Bvh,
+    camera: &Camera,
+    options: &CpuOptions,
+    keep: &(dyn Fn(u32, u32) -> bool + Sync),
+) -> Framebuffer {
+    let none = &|_, _| {};
+    let pixels = match options.precision {
+        Precision::F32 => {
+            let s = CpuScene::<f32>::new(scene, bvh, camera, options);
+            per_pixel(&s, none, |s, x, y| {
+                if keep(x, y) {
+                    f32::v3_to_f32(f32::clamp01(pixel_color(s, x, y)))
+                } else {
+                    [0.0; 3]
+                }
+            })
+        }
+        Precision::F64 => {
+            let s = CpuScene::<f64>::new(scene, bvh, camera, options);
+            per_pixel(&s, none, |s, x, y| {
+                if keep(x, y) {
+                    f64::v3_to_f32(f64::clamp01(pixel_color(s, x, y)))
+                } else {
+                    [0.0; 3]
+                }
+            })
+        }
+    };
+    Framebuffer {
+        width: camera.width,
+        height: camera.height,
+        pixels,
+    }
+}
+
 /// Each pixel's primary hit and shadow verdicts, as the shader's `probe_tile`.
 pub fn probe(scene: &Scene, bvh: &Bvh, camera: &Camera, options: &CpuOptions) -> ProbeImage {
     fn record<R: Real>(s: &CpuScene<R>, x: u32, y: u32) -> ProbePixel {

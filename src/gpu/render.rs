@@ -222,6 +222,9 @@ const PATH_MAX_LIGHTS: u32 = 21_000;
 enum Job {
     /// `Kernel::Render` or `Kernel::ProbeTile` over the whole image.
     Image(Kernel),
+    /// `Kernel::Render` over the rectangles `run` is given (none larger
+    /// than a tile).
+    Rects,
     /// The path record of one pixel.
     Pixel([u32; 2]),
 }
@@ -396,7 +399,54 @@ impl GpuRenderer {
             background,
             options,
             job,
+            &[],
             progress,
+            &mut |rect, texels| {
+                place_tile(rect, texels, width, &mut pixels, |t| [t[0], t[1], t[2]])
+            },
+        )?;
+        let fb = Framebuffer {
+            width: camera.width,
+            height: camera.height,
+            pixels,
+        };
+        Ok((fb, timings))
+    }
+
+    /// Renders only the rectangles `rects` (x, y, width, height) of the
+    /// image, each as its own tile (split where larger than one); the rest
+    /// of the framebuffer is left 0. For progressive renders that spend
+    /// passes where the noise is.
+    pub fn render_rects(
+        &self,
+        scene: &GpuScene,
+        camera: &Camera,
+        background: [f32; 3],
+        options: &GpuRenderOptions,
+        rects: &[[u32; 4]],
+    ) -> Result<(Framebuffer, Timings), GpuError> {
+        let edge = tile_edge(options.tile_size);
+        let mut parts = Vec::new();
+        for &[x, y, w, h] in rects {
+            let w = w.min(camera.width.saturating_sub(x));
+            let h = h.min(camera.height.saturating_sub(y));
+            for t in tiles(w, h, edge) {
+                parts.push(TileRect {
+                    origin: [x + t.origin[0], y + t.origin[1]],
+                    size: t.size,
+                });
+            }
+        }
+        let width = camera.width as usize;
+        let mut pixels = vec![[0.0f32; 3]; width * camera.height as usize];
+        let timings = self.run(
+            scene,
+            camera,
+            background,
+            options,
+            Job::Rects,
+            &parts,
+            &|_, _| {},
             &mut |rect, texels| {
                 place_tile(rect, texels, width, &mut pixels, |t| [t[0], t[1], t[2]])
             },
@@ -425,6 +475,7 @@ impl GpuRenderer {
             [0.0; 3],
             options,
             job,
+            &[],
             &|_, _| {},
             &mut |rect, texels| place_tile(rect, texels, width, &mut image, |t| *t),
         )?;
@@ -448,6 +499,7 @@ impl GpuRenderer {
             background,
             options,
             job,
+            &[],
             &|_, _| {},
             &mut |_, texels| record = texels.to_vec(),
         )?;
@@ -545,6 +597,7 @@ impl GpuRenderer {
         background: [f32; 3],
         options: &GpuRenderOptions,
         job: Job,
+        rects: &[TileRect],
         progress: &(dyn Fn(u64, u64) + Sync),
         sink: &mut dyn FnMut(TileRect, &[[f32; 4]]),
     ) -> Result<Timings, GpuError> {
@@ -554,6 +607,11 @@ impl GpuRenderer {
             Job::Image(kernel) => (
                 kernel,
                 tiles(camera.width, camera.height, tile_edge),
+                tile_texels(options.tile_size, camera.width, camera.height),
+            ),
+            Job::Rects => (
+                Kernel::Render,
+                rects.to_vec(),
                 tile_texels(options.tile_size, camera.width, camera.height),
             ),
             Job::Pixel(origin) => {
@@ -674,7 +732,7 @@ impl GpuRenderer {
                 let start = Instant::now();
                 let texels: &[[f32; 4]] = bytemuck::cast_slice(slot.readback.get().mapped());
                 let n = match job {
-                    Job::Image(_) => (work.rect.size[0] * work.rect.size[1]) as usize,
+                    Job::Image(_) | Job::Rects => (work.rect.size[0] * work.rect.size[1]) as usize,
                     Job::Pixel(_) => out_texels as usize,
                 };
                 sink(work.rect, &texels[..n]);
@@ -1042,7 +1100,7 @@ impl GpuRenderer {
         };
         slot.tile.write(bytemuck::bytes_of(&tile));
         let (groups, texels) = match job {
-            Job::Image(_) => (
+            Job::Image(_) | Job::Rects => (
                 [
                     rect.size[0].div_ceil(WORKGROUP_SIZE),
                     rect.size[1].div_ceil(WORKGROUP_SIZE),
