@@ -118,6 +118,14 @@ pub struct Renderer {
     note: Option<String>,
 }
 
+/// A scene made ready for rendering on one `Renderer` (`prepare_scene`).
+pub struct PreparedScene {
+    prepared: Prepared,
+    packed: Option<GpuScene>,
+    /// What preparing took (BVH build, packing).
+    pub timings: Timings,
+}
+
 /// Per scene: the camera and the BVH (over the shutter interval when the
 /// scene has motion blur).
 struct Prepared {
@@ -269,6 +277,37 @@ impl Renderer {
         let p = self.prepare(scene, &mut timings);
         let packed = self.pack(scene, &p, &mut timings);
         self.render_prepared(scene, &p, packed.as_ref(), timings, None, progress)
+    }
+
+    /// Makes `scene` ready for repeated renders (camera, BVH, packed data),
+    /// so that timing them measures the render alone.
+    pub fn prepare_scene(&self, scene: &Scene) -> PreparedScene {
+        let mut timings = Timings::default();
+        let prepared = self.prepare(scene, &mut timings);
+        let packed = self.pack(scene, &prepared, &mut timings);
+        PreparedScene {
+            prepared,
+            packed,
+            timings,
+        }
+    }
+
+    /// Renders a scene `prepare_scene` made ready (the same `scene`).
+    pub fn render_prepared_scene(
+        &self,
+        scene: &Scene,
+        ready: &PreparedScene,
+        progress: &(dyn Fn(u64, u64) + Sync),
+    ) -> Result<RenderOutput, Error> {
+        let timings = self.take_setup_timings();
+        self.render_prepared(
+            scene,
+            &ready.prepared,
+            ready.packed.as_ref(),
+            timings,
+            None,
+            progress,
+        )
     }
 
     /// Renders `scene` in passes of its own samples per pixel, each with a

@@ -1,0 +1,187 @@
+//! Render times per scene and backend, as medians (`glint bench`, `cargo
+//! bench`), through `render::Renderer` like every render: device creation
+//! and pipeline builds happen once and are reported apart; each scene is
+//! prepared once (BVH, packed data) and its renders are timed.
+
+use std::fmt::Write as _;
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use super::{repeat, Stat};
+use crate::bvh::Bvh;
+use crate::cpu::Precision;
+use crate::gpu::DeviceSelector;
+use crate::render::{Backend, RenderOptions, Renderer};
+use crate::scene::read_scene;
+use crate::Error;
+
+#[derive(Clone, Debug)]
+pub struct BenchOptions {
+    pub scenes: Vec<PathBuf>,
+    pub width: u32,
+    pub height: u32,
+    pub repeat: usize,
+    pub gpu: bool,
+    pub cpu_f32: bool,
+    pub cpu_f64: bool,
+    pub device: Option<DeviceSelector>,
+}
+
+#[derive(Clone, Debug)]
+pub struct SceneResult {
+    pub name: String,
+    pub primitives: usize,
+    pub bvh: Stat,
+    /// Upload + dispatch + readback, per render.
+    pub gpu: Option<Stat>,
+    pub cpu_f32: Option<Stat>,
+    pub cpu_f64: Option<Stat>,
+}
+
+#[derive(Clone, Debug)]
+pub struct BenchReport {
+    pub device: Option<String>,
+    pub device_creation: Option<Duration>,
+    pub pipeline_build: Option<Duration>,
+    pub cpu_threads: usize,
+    pub width: u32,
+    pub height: u32,
+    pub repeat: usize,
+    pub scenes: Vec<SceneResult>,
+}
+
+/// Runs the benchmark; `progress` receives one line per finished measurement.
+pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<BenchReport, Error> {
+    let n = options.repeat.max(1);
+    let base = RenderOptions {
+        width: options.width,
+        height: options.height,
+        device: options.device.clone(),
+        ..RenderOptions::default()
+    };
+    let mut report = BenchReport {
+        device: None,
+        device_creation: None,
+        pipeline_build: None,
+        cpu_threads: rayon::current_num_threads(),
+        width: options.width,
+        height: options.height,
+        repeat: n,
+        scenes: Vec::new(),
+    };
+    let gpu = if options.gpu {
+        let start = Instant::now();
+        let r = Renderer::new(&RenderOptions {
+            backend: Backend::Gpu,
+            ..base.clone()
+        })?;
+        report.device_creation = Some(start.elapsed());
+        report.device = Some(r.name());
+        Some(r)
+    } else {
+        None
+    };
+    let cpu = |precision| {
+        Renderer::new(&RenderOptions {
+            backend: Backend::Cpu,
+            precision,
+            ..base.clone()
+        })
+    };
+    let cpu_f32 = options.cpu_f32.then(|| cpu(Precision::F32)).transpose()?;
+    let cpu_f64 = options.cpu_f64.then(|| cpu(Precision::F64)).transpose()?;
+    let mut pipelines = Duration::ZERO;
+    for path in &options.scenes {
+        let scene = read_scene(path)?;
+        let name = path.file_stem().map_or_else(
+            || path.display().to_string(),
+            |s| s.to_string_lossy().into_owned(),
+        );
+        let bvh_stat = repeat(n, || {
+            Bvh::build(&scene);
+            Ok(())
+        })?
+        .expect("n >= 1");
+        let mut result = SceneResult {
+            name: name.clone(),
+            primitives: scene.primitive_count(),
+            bvh: bvh_stat,
+            gpu: None,
+            cpu_f32: None,
+            cpu_f64: None,
+        };
+        if let Some(r) = &gpu {
+            pipelines += r.prepare_pipeline(&scene)?;
+            let ready = r.prepare_scene(&scene);
+            // One untimed render first: drivers compile lazily on first use.
+            r.render_prepared_scene(&scene, &ready, &|_, _| {})?;
+            result.gpu = repeat(n, || {
+                r.render_prepared_scene(&scene, &ready, &|_, _| {})?;
+                Ok(())
+            })?;
+            progress(&format!("{name}: gpu {:.1} ms", ms(result.gpu)));
+        }
+        for (renderer, slot) in [
+            (cpu_f32.as_ref(), &mut result.cpu_f32),
+            (cpu_f64.as_ref(), &mut result.cpu_f64),
+        ] {
+            if let Some(r) = renderer {
+                let ready = r.prepare_scene(&scene);
+                *slot = repeat(n, || {
+                    r.render_prepared_scene(&scene, &ready, &|_, _| {})?;
+                    Ok(())
+                })?;
+                progress(&format!("{name}: {} {:.1} ms", r.name(), ms(*slot)));
+            }
+        }
+        report.scenes.push(result);
+    }
+    if gpu.is_some() {
+        report.pipeline_build = Some(pipelines);
+    }
+    Ok(report)
+}
+
+fn ms(s: Option<Stat>) -> f64 {
+    s.map_or(f64::NAN, |s| s.median.as_secs_f64() * 1e3)
+}
+
+impl BenchReport {
+    /// A Markdown table of medians (min-max in brackets), in milliseconds.
+    pub fn to_markdown(&self) -> String {
+        let mut out = String::new();
+        let cell = |s: Option<Stat>| s.map_or_else(|| "-".into(), |s| s.to_string());
+        let _ = writeln!(
+            out,
+            "{}x{}, median of {} runs (min-max), milliseconds; CPU reference on {} threads",
+            self.width, self.height, self.repeat, self.cpu_threads
+        );
+        if let Some(device) = &self.device {
+            let _ = writeln!(
+                out,
+                "{device}; device creation {:.1} ms, pipeline builds {:.1} ms (each feature set once)",
+                self.device_creation.unwrap_or_default().as_secs_f64() * 1e3,
+                self.pipeline_build.unwrap_or_default().as_secs_f64() * 1e3
+            );
+        }
+        let _ = writeln!(out);
+        let _ = writeln!(
+            out,
+            "| scene | primitives | BVH build | GPU render | CPU f32 | CPU f64 |"
+        );
+        let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|");
+        for s in &self.scenes {
+            let _ = writeln!(
+                out,
+                "| {} | {} | {} | {} | {} | {} |",
+                s.name,
+                s.primitives,
+                cell(Some(s.bvh)),
+                cell(s.gpu),
+                cell(s.cpu_f32),
+                cell(s.cpu_f64)
+            );
+        }
+        out
+    }
+}
