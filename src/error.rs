@@ -35,6 +35,8 @@ pub enum Error {
     },
     #[error("invalid option: {0}")]
     InvalidOption(String),
+    #[error("cannot write {path}: {reason}")]
+    BadOutput { path: PathBuf, reason: String },
     #[error(
         "this render needs about {parts} of memory, but {} is available; nothing was rendered: \
          render a smaller image (--width/--height), or free memory",
@@ -49,11 +51,18 @@ pub enum Error {
 }
 
 impl Error {
-    /// 2: bad input (scene file missing or malformed); 3: no usable Vulkan
-    /// device; 1: anything else.
+    /// 2: bad input (a scene file or image missing or malformed, an invalid
+    /// option, an output that cannot be written, found before any work);
+    /// 3: no usable Vulkan device; 1: anything else.
     pub fn exit_code(&self) -> i32 {
         match self {
-            Error::ReadScene { .. } | Error::Parse(_) => 2,
+            Error::ReadScene { .. }
+            | Error::Parse(_)
+            | Error::ReadImage { .. }
+            | Error::UnsupportedImageFormat(_)
+            | Error::SizeMismatch(..)
+            | Error::InvalidOption(_)
+            | Error::BadOutput { .. } => 2,
             Error::Gpu(GpuError::Loader(_) | GpuError::NoDevice | GpuError::DeviceNotFound(_)) => 3,
             _ => 1,
         }

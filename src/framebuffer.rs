@@ -113,6 +113,43 @@ pub fn write_image(img: &RgbImage, path: &Path, jpeg_quality: u8) -> Result<(), 
     }
 }
 
+/// Checks, before any work, that an image can be written at `path`: a
+/// known extension, not a directory, in a directory that exists and takes
+/// new files (a probe file is created and removed).
+pub fn check_output(path: &Path) -> Result<(), Error> {
+    let bad = |reason: String| Error::BadOutput {
+        path: path.to_path_buf(),
+        reason,
+    };
+    if path.is_dir() {
+        return Err(bad(format!(
+            "it is a directory; name an image file, e.g. {}",
+            path.join("out.png").display()
+        )));
+    }
+    ImageFile::of(path)?;
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if !dir.is_dir() {
+        return Err(bad(format!(
+            "the directory {} does not exist; create it first",
+            dir.display()
+        )));
+    }
+    tempfile::Builder::new()
+        .prefix(".glint-probe-")
+        .tempfile_in(dir)
+        .map(drop)
+        .map_err(|e| {
+            bad(format!(
+                "the directory {} does not take new files ({e})",
+                dir.display()
+            ))
+        })
+}
+
 type Sink<'a> = std::io::BufWriter<&'a mut std::fs::File>;
 
 /// Runs `encode` into a temporary file in `path`'s directory, which is then

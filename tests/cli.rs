@@ -147,13 +147,13 @@ fn failed_render_leaves_an_existing_image_untouched() {
 }
 
 #[test]
-fn unsupported_output_type_exits_1_and_says_which_types_work() {
+fn unsupported_output_type_exits_2_and_says_which_types_work() {
     let d = tmp();
     let scene = showcase();
     let mut args = vec!["render", &scene, "out.bmp", "--backend", "cpu"];
     args.extend(SMALL);
     let o = glint(&args, d.path());
-    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(o.status.code(), Some(2));
     assert!(
         stderr(&o).contains("use a .png, .jpg, .jpeg or .exr file name"),
         "{}",
@@ -170,7 +170,7 @@ fn f64_on_the_gpu_is_refused() {
         &["render", &scene, "--backend", "gpu", "--precision", "f64"],
         d.path(),
     );
-    assert_eq!(o.status.code(), Some(1));
+    assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("CPU reference only"), "{}", stderr(&o));
 }
 
@@ -339,7 +339,7 @@ fn pixel_path_is_printed_on_each_backend() {
         assert!(std::fs::read_dir(d.path()).expect("dir").next().is_none());
     }
     let o = glint(&["render", &scene, "--pixel", "640,0"], d.path());
-    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(
         stderr(&o).contains("outside the 640x480 image"),
         "{}",
@@ -747,5 +747,63 @@ fn adaptive_needs_a_target_and_reports_mean_samples() {
         stdout(&o).contains("samples per pixel on average, at most"),
         "{}",
         stdout(&o)
+    );
+}
+
+/// Outputs that cannot be written are refused before any work, with exit 2
+/// and one line that says why (a scene that would take long to render is
+/// never rendered for nothing).
+#[test]
+fn unwritable_outputs_are_refused_before_rendering() {
+    let d = tmp();
+    std::fs::create_dir(d.path().join("adir")).expect("mkdir");
+    std::fs::write(d.path().join("afile"), b"x").expect("write");
+    // all_effects takes seconds at this size: a refusal must come at once.
+    let scene = repo_path("scenes/effects/all_effects.scene")
+        .display()
+        .to_string();
+    let cases: [(&[&str], &str); 6] = [
+        (
+            &["nodir/sub/out.png"],
+            "the directory nodir/sub does not exist; create it first",
+        ),
+        (
+            &["adir"],
+            "it is a directory; name an image file, e.g. adir/out.png",
+        ),
+        (&["out.bmp"], "unsupported image type"),
+        (&["afile", "--frames", "2"], "this is a file"),
+        (&["x.png", "--frames", "2"], "this is an image name"),
+        (
+            &["fr", "--frames", "12", "--frame-range", "10-14"],
+            "goes past the last frame",
+        ),
+    ];
+    for (extra, want) in cases {
+        let mut args = vec!["render", scene.as_str()];
+        args.extend_from_slice(extra);
+        args.extend(["--backend", "cpu"]);
+        let start = std::time::Instant::now();
+        let o = glint(&args, d.path());
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        let err = stderr(&o);
+        assert!(err.contains(want), "{args:?}: {err}");
+        assert_eq!(err.lines().count(), 1, "{args:?}: one line, got {err}");
+        assert!(!err.contains(".part"), "{args:?}: {err}");
+        assert!(
+            start.elapsed() < std::time::Duration::from_secs(5),
+            "{args:?}: refused only after {:?}",
+            start.elapsed()
+        );
+    }
+    assert!(!d.path().join("fr").exists());
+    let o = glint(&["compare", "missing.png", "afile.png"], d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let o = glint(&["bench", "--no-gpu", "--no-cpu", &scene], d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("leave nothing to time"),
+        "{}",
+        stderr(&o)
     );
 }

@@ -157,6 +157,12 @@ fn run_scenes(args: SceneArgs) -> anyhow::Result<ExitCode> {
         !scenes.is_empty(),
         "no scenes to benchmark: name some scene files"
     );
+    if args.no_gpu && args.no_cpu {
+        return Err(glint::Error::InvalidOption(
+            "--no-gpu and --no-cpu together leave nothing to time; drop one".into(),
+        )
+        .into());
+    }
     let options = BenchOptions {
         scenes,
         width: args.width,

@@ -5,7 +5,7 @@ use std::time::{Duration, Instant};
 use anyhow::Context as _;
 use clap::Args;
 use glint::cpu::Precision;
-use glint::framebuffer::{write_framebuffer, DEFAULT_JPEG_QUALITY};
+use glint::framebuffer::{check_output, write_framebuffer, DEFAULT_JPEG_QUALITY};
 use glint::gpu::DeviceSelector;
 use glint::methods::Methods;
 use glint::progressive::{PassReport, StopAt, Stopped};
@@ -176,15 +176,30 @@ fn default_output(scene: &Path) -> PathBuf {
 }
 
 pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
+    let (out, defaulted) = match args.out.clone().or(args.output.clone()) {
+        Some(p) => (p, false),
+        None => (default_output(&args.scene), true),
+    };
+    // Everything the arguments alone decide is checked before any work.
+    if let Some(frames) = args.frames {
+        check_frames(&args, frames, &out, defaulted)?;
+    } else if args.pixel.is_none() {
+        check_output(&out)?;
+    }
+    if let Some([x, y]) = args.pixel {
+        if x >= args.width || y >= args.height {
+            return Err(glint::Error::InvalidOption(format!(
+                "pixel {x},{y} is outside the {}x{} image (x counts from 0 at the left, y from 0 at the top)",
+                args.width, args.height
+            ))
+            .into());
+        }
+    }
     let parse_start = Instant::now();
     let scene = glint::scene::read_scene(&args.scene)?;
     let parse_time = parse_start.elapsed();
     print_warnings(&scene);
 
-    let (out, defaulted) = match args.out.clone().or(args.output.clone()) {
-        Some(p) => (p, false),
-        None => (default_output(&args.scene), true),
-    };
     let options = RenderOptions {
         width: args.width,
         height: args.height,
@@ -304,6 +319,44 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         println!("memory:\n  {} beyond the scene and its BVH", output.memory);
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// `--frames`: the range fits and OUT can be the frames' directory.
+fn check_frames(args: &RenderArgs, frames: u32, out: &Path, defaulted: bool) -> anyhow::Result<()> {
+    let invalid = |m: String| -> anyhow::Error { glint::Error::InvalidOption(m).into() };
+    if let Some([first, last]) = args.frame_range {
+        if last >= frames {
+            return Err(invalid(format!(
+                "--frame-range {first}-{last} goes past the last frame of --frames {frames} \
+                 (frames count from 0, so the last is {})",
+                frames - 1
+            )));
+        }
+    }
+    if defaulted {
+        return Ok(());
+    }
+    let bad = |reason: String| -> anyhow::Error {
+        glint::Error::BadOutput {
+            path: out.to_path_buf(),
+            reason,
+        }
+        .into()
+    };
+    if out.extension().is_some_and(|e| {
+        ["jpg", "jpeg", "png", "exr"].contains(&e.to_string_lossy().to_ascii_lowercase().as_str())
+    }) {
+        return Err(bad(
+            "with --frames, the output is a directory for 000.jpg, 001.jpg, ...; this is an image name".into(),
+        ));
+    }
+    if out.exists() && !out.is_dir() {
+        return Err(bad(
+            "with --frames, the output is a directory for 000.jpg, 001.jpg, ...; this is a file"
+                .into(),
+        ));
+    }
+    Ok(())
 }
 
 /// `--target-error` / `--time-limit`: passes until one of them says stop.
@@ -446,23 +499,6 @@ fn animate(
     dir: &Path,
 ) -> anyhow::Result<ExitCode> {
     let [first, last] = args.frame_range.unwrap_or([0, frames - 1]);
-    if last >= frames {
-        anyhow::bail!(
-            "--frame-range {first}-{last} goes past the last frame of --frames {frames} \
-             (frames count from 0, so the last is {})",
-            frames - 1
-        );
-    }
-    if dir
-        .extension()
-        .is_some_and(|e| e == "jpg" || e == "png" || e == "jpeg")
-    {
-        anyhow::bail!(
-            "with --frames, the output is a directory for 000.jpg, 001.jpg, ...; \
-             found the image name {}",
-            dir.display()
-        );
-    }
     std::fs::create_dir_all(dir)
         .with_context(|| format!("creating the frame directory {}", dir.display()))?;
     let renderer = Renderer::new(options)?;
