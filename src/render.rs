@@ -143,6 +143,11 @@ impl Renderer {
                 options.width, options.height
             )));
         }
+        if options.backend == Backend::Cpu && options.device.is_some() {
+            return Err(Error::InvalidOption(
+                "--device chooses a Vulkan device; it has no effect with --backend cpu".into(),
+            ));
+        }
         if options.backend == Backend::Gpu && options.precision == Precision::F64 {
             return Err(Error::InvalidOption(
                 "--precision f64 exists on the CPU reference only; use --backend cpu".into(),
@@ -170,7 +175,9 @@ impl Renderer {
                     let renderer = Box::new(GpuRenderer::new(&ctx)?);
                     engine = Engine::Gpu { ctx, renderer };
                 }
-                Err(e) if options.backend == Backend::Auto => {
+                // A device asked for by name or index is a request for the
+                // GPU: not finding it is an error (exit 3), not a fallback.
+                Err(e) if options.backend == Backend::Auto && options.device.is_none() => {
                     note = Some(format!(
                         "no usable Vulkan device ({e}); rendered on the CPU reference"
                     ));

@@ -247,6 +247,38 @@ fn gpu_render_devices_and_unknown_device() {
         "{}",
         stderr(&o)
     );
+    // With auto, a device that is not found is as much an error: no quiet
+    // CPU render in its place.
+    let o = glint(
+        &["render", &scene, "a.png", "--device", "no such gpu"],
+        d.path(),
+    );
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    assert!(!d.path().join("a.png").exists());
+}
+
+/// `--device` with `--backend cpu` says it has no effect (exit 2).
+#[test]
+fn device_with_the_cpu_backend_is_refused() {
+    let d = tmp();
+    let o = glint(
+        &[
+            "render",
+            &showcase(),
+            "a.png",
+            "--backend",
+            "cpu",
+            "--device",
+            "0",
+        ],
+        d.path(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("no effect with --backend cpu"),
+        "{}",
+        stderr(&o)
+    );
 }
 
 #[test]

@@ -84,6 +84,7 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
     let cpu = |precision| {
         Renderer::new(&RenderOptions {
             backend: Backend::Cpu,
+            device: None,
             precision,
             ..base.clone()
         })

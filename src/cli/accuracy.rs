@@ -166,6 +166,10 @@ pub fn run(args: AccuracyArgs) -> anyhow::Result<ExitCode> {
                         Target::Gpu => Precision::F32,
                     },
                     methods: point.methods,
+                    device: match point.target {
+                        Target::Gpu => base.device.clone(),
+                        Target::Cpu(_) => None,
+                    },
                     ..base.clone()
                 };
                 e.insert(Renderer::new(&options)?)
@@ -306,6 +310,7 @@ fn reference(
     }
     let options = RenderOptions {
         backend: Backend::Cpu,
+        device: None,
         precision: Precision::F64,
         settings: glint::scene::Settings {
             // Other seeds than every point's: a reference that shares a
