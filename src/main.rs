@@ -25,6 +25,7 @@ fn main() -> ExitCode {
         std::process::exit(130);
     });
     let args = cli::Cli::parse();
+    let hint = args.no_device_hint();
     match cli::run(args) {
         Ok(code) => code,
         Err(err) => {
@@ -32,6 +33,11 @@ fn main() -> ExitCode {
             let code = err
                 .downcast_ref::<glint::Error>()
                 .map_or(1, glint::Error::exit_code);
+            if code == 3 {
+                if let Some(hint) = hint {
+                    eprintln!("hint: {hint}");
+                }
+            }
             ExitCode::from(code as u8)
         }
     }

@@ -197,6 +197,15 @@ fn no_vulkan_device_exits_3_for_gpu_and_falls_back_for_auto() {
 
     let o = glint_without_vulkan(&["devices"], d.path());
     assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("--backend"), "{}", stderr(&o));
+    // Each command's hint names a flag it accepts.
+    let o = glint_without_vulkan(&["bench", "--repeat", "1", &scene], d.path());
+    assert_eq!(o.status.code(), Some(3), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("`--no-gpu`") && !stderr(&o).contains("--backend"),
+        "{}",
+        stderr(&o)
+    );
 }
 
 #[test]

@@ -14,6 +14,17 @@ pub struct BenchArgs {
     scenes: SceneArgs,
 }
 
+impl BenchArgs {
+    pub fn no_device_hint(&self) -> &'static str {
+        match self.command {
+            Some(BenchCommand::Specialize(_)) => {
+                "`glint bench specialize` measures GPU shaders only; it needs a Vulkan device"
+            }
+            _ => "or time the CPU reference alone: `--no-gpu`",
+        }
+    }
+}
+
 #[derive(Subcommand, Debug)]
 enum BenchCommand {
     /// The hard-case suite (scenes/hard): failure counts per case, backend and

@@ -124,6 +124,19 @@ pub enum PrecisionArg {
     F64,
 }
 
+impl Cli {
+    /// What this command can do without a Vulkan device (printed after an
+    /// error with exit 3); each names a flag the command accepts.
+    pub fn no_device_hint(&self) -> Option<&'static str> {
+        match &self.command {
+            Command::Render(_) => Some("or render on the CPU reference: `--backend cpu`"),
+            Command::Accuracy(_) => Some("or sweep the CPU reference alone: `--backend cpu`"),
+            Command::Bench(b) => Some(b.no_device_hint()),
+            Command::Devices | Command::Compare(_) | Command::Info { .. } => None,
+        }
+    }
+}
+
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     match cli.command {
         Command::Render(args) => render::run(args),

@@ -5,13 +5,12 @@ use ash::vk;
 pub enum GpuError {
     #[error(
         "cannot load the Vulkan library ({0}); install a Vulkan driver \
-         (e.g. `apt-get install mesa-vulkan-drivers` for the lavapipe software device) \
-         or use `--backend cpu`"
+         (e.g. `apt-get install mesa-vulkan-drivers` for the lavapipe software device)"
     )]
     Loader(String),
     #[error(
         "no Vulkan device with a compute queue was found; install a driver \
-         (e.g. `apt-get install mesa-vulkan-drivers` for lavapipe) or use `--backend cpu`"
+         (e.g. `apt-get install mesa-vulkan-drivers` for lavapipe)"
     )]
     NoDevice,
     #[error(
