@@ -60,25 +60,7 @@ pub fn render(
     options: &CpuOptions,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Framebuffer {
-    let pixels = match options.precision {
-        Precision::F32 => {
-            let s = CpuScene::<f32>::new(scene, bvh, camera, options);
-            per_pixel(&s, progress, |s, x, y| {
-                f32::v3_to_f32(f32::clamp01(pixel_color(s, x, y)))
-            })
-        }
-        Precision::F64 => {
-            let s = CpuScene::<f64>::new(scene, bvh, camera, options);
-            per_pixel(&s, progress, |s, x, y| {
-                f64::v3_to_f32(f64::clamp01(pixel_color(s, x, y)))
-            })
-        }
-    };
-    Framebuffer {
-        width: camera.width,
-        height: camera.height,
-        pixels,
-    }
+    render_pixels(scene, bvh, camera, options, &|_, _| true, progress)
 }
 
 /// As `render`, only the pixels `keep` says (the others are 0): the CPU
@@ -90,27 +72,29 @@ pub fn render_where(
     options: &CpuOptions,
     keep: &(dyn Fn(u32, u32) -> bool + Sync),
 ) -> Framebuffer {
-    let none = &|_, _| {};
+    render_pixels(scene, bvh, camera, options, keep, &|_, _| {})
+}
+
+fn render_pixels(
+    scene: &Scene,
+    bvh: &Bvh,
+    camera: &Camera,
+    options: &CpuOptions,
+    keep: &(dyn Fn(u32, u32) -> bool + Sync),
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> Framebuffer {
+    fn colour<R: Real>(s: &CpuScene<R>, x: u32, y: u32) -> [f32; 3] {
+        R::v3_to_f32(R::clamp01(pixel_color(s, x, y)))
+    }
+    let pixel = |x: u32, y: u32, f: &dyn Fn() -> [f32; 3]| if keep(x, y) { f() } else { [0.0; 3] };
     let pixels = match options.precision {
         Precision::F32 => {
             let s = CpuScene::<f32>::new(scene, bvh, camera, options);
-            per_pixel(&s, none, |s, x, y| {
-                if keep(x, y) {
-                    f32::v3_to_f32(f32::clamp01(pixel_color(s, x, y)))
-                } else {
-                    [0.0; 3]
-                }
-            })
+            per_pixel(&s, progress, |s, x, y| pixel(x, y, &|| colour(s, x, y)))
         }
         Precision::F64 => {
             let s = CpuScene::<f64>::new(scene, bvh, camera, options);
-            per_pixel(&s, none, |s, x, y| {
-                if keep(x, y) {
-                    f64::v3_to_f32(f64::clamp01(pixel_color(s, x, y)))
-                } else {
-                    [0.0; 3]
-                }
-            })
+            per_pixel(&s, progress, |s, x, y| pixel(x, y, &|| colour(s, x, y)))
         }
     };
     Framebuffer {

@@ -391,26 +391,7 @@ impl GpuRenderer {
         progress: &(dyn Fn(u64, u64) + Sync),
     ) -> Result<(Framebuffer, Timings), GpuError> {
         let job = Job::Image(Kernel::Render);
-        let width = camera.width as usize;
-        let mut pixels = vec![[0.0f32; 3]; width * camera.height as usize];
-        let timings = self.run(
-            scene,
-            camera,
-            background,
-            options,
-            job,
-            &[],
-            progress,
-            &mut |rect, texels| {
-                place_tile(rect, texels, width, &mut pixels, |t| [t[0], t[1], t[2]])
-            },
-        )?;
-        let fb = Framebuffer {
-            width: camera.width,
-            height: camera.height,
-            pixels,
-        };
-        Ok((fb, timings))
+        self.render_job(scene, camera, background, options, job, &[], progress)
     }
 
     /// Renders only the rectangles `rects` (x, y, width, height) of the
@@ -437,9 +418,7 @@ impl GpuRenderer {
                 });
             }
         }
-        let width = camera.width as usize;
-        let mut pixels = vec![[0.0f32; 3]; width * camera.height as usize];
-        let timings = self.run(
+        self.render_job(
             scene,
             camera,
             background,
@@ -447,6 +426,31 @@ impl GpuRenderer {
             Job::Rects,
             &parts,
             &|_, _| {},
+        )
+    }
+
+    /// The colour image of a `Kernel::Render` job (`rects` for `Job::Rects`).
+    #[allow(clippy::too_many_arguments)]
+    fn render_job(
+        &self,
+        scene: &GpuScene,
+        camera: &Camera,
+        background: [f32; 3],
+        options: &GpuRenderOptions,
+        job: Job,
+        rects: &[TileRect],
+        progress: &(dyn Fn(u64, u64) + Sync),
+    ) -> Result<(Framebuffer, Timings), GpuError> {
+        let width = camera.width as usize;
+        let mut pixels = vec![[0.0f32; 3]; width * camera.height as usize];
+        let timings = self.run(
+            scene,
+            camera,
+            background,
+            options,
+            job,
+            rects,
+            progress,
             &mut |rect, texels| {
                 place_tile(rect, texels, width, &mut pixels, |t| [t[0], t[1], t[2]])
             },
