@@ -119,6 +119,10 @@ struct Status {
     // index (y * width + x).
     cut: atomic<u32>,
     first_cut: atomic<u32>,
+    // Rays this pass cast: closest-hit (primary and reflected) and shadow
+    // (one per point light, or per area-light sample); for `--stats`.
+    closest_rays: atomic<u32>,
+    shadow_rays: atomic<u32>,
     _pad: u32,
 }
 
@@ -1199,6 +1203,8 @@ fn render_tile(@builtin(global_invocation_id) id: vec3<u32>) {
     work = 0u;
     cut = false;
     var paused = false;
+    var closest_rays = 0u;
+    var shadow_rays = 0u;
     loop {
         if (st.sample >= n || paused || cut) {
             break;
@@ -1222,6 +1228,7 @@ fn render_tile(@builtin(global_invocation_id) id: vec3<u32>) {
                     break;
                 }
                 work += 1u;
+                closest_rays += 1u;
                 let hit = trace_closest(ray);
                 st.prim = hit.prim;
                 st.t = hit.t;
@@ -1250,6 +1257,7 @@ fn render_tile(@builtin(global_invocation_id) id: vec3<u32>) {
                         break;
                     }
                     work += 1u;
+                    shadow_rays += 1u;
                     shade_step(&st, sp, -ray.dir, key);
                 }
                 if (st.light < frame.light_count) {
@@ -1278,6 +1286,14 @@ fn render_tile(@builtin(global_invocation_id) id: vec3<u32>) {
     }
     if (st.sample < n && !paused) {
         cut = true;
+    }
+    // One atomic per invocation and pass; a cut pass is redone from its
+    // tile's start, and the host drops its counts with it.
+    if (closest_rays > 0u) {
+        atomicAdd(&status.closest_rays, closest_rays);
+    }
+    if (shadow_rays > 0u) {
+        atomicAdd(&status.shadow_rays, shadow_rays);
     }
     if (cut) {
         atomicAdd(&status.cut, 1u);

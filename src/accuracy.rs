@@ -10,6 +10,7 @@ use crate::cpu::Precision;
 use crate::framebuffer::Framebuffer;
 use crate::info::Features;
 use crate::methods::Methods;
+use crate::plot::{hex, Anchor, Plot};
 use crate::scene::{Effects, Scene, Settings};
 
 /// Where a point renders.
@@ -360,9 +361,9 @@ pub fn markdown(rows: &[Measured], header: &str, target: f64) -> String {
     s
 }
 
-/// A log-log plot of RMSE against time, one line per knob and backend, as
-/// SVG (text is drawn by whatever shows it; no font is needed here).
-pub fn svg(rows: &[Measured], title: &str) -> String {
+/// A log-log plot of RMSE against time, one line per knob and backend
+/// (`Plot::to_svg`, `Plot::to_image`).
+pub fn plot(rows: &[Measured], title: &str) -> Plot {
     let (w, h) = (720.0, 480.0);
     let (left, right, top, bottom) = (70.0, 200.0, 40.0, 50.0);
     let pts: Vec<(f64, f64)> = rows
@@ -383,36 +384,44 @@ pub fn svg(rows: &[Measured], title: &str) -> String {
     let (y0, y1) = span(|p| p.1);
     let px = |x: f64| left + (x - x0) / (x1 - x0) * (w - left - right);
     let py = |y: f64| h - bottom - (y - y0) / (y1 - y0) * (h - top - bottom);
-    let mut s = format!(
-        "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" font-family=\"sans-serif\" font-size=\"12\">\n<rect width=\"{w}\" height=\"{h}\" fill=\"white\"/>\n<text x=\"{left}\" y=\"22\" font-size=\"14\">{}</text>\n",
-        escape(title)
-    );
+    let mut p = Plot::new(w, h);
+    p.text([left, 22.0], title, 14.0, Anchor::Start, false);
+    let grid = [0xdd; 3];
     for d in (x0 as i32)..=(x1 as i32) {
         let x = px(f64::from(d));
-        let _ = writeln!(
-            s,
-            "<line x1=\"{x:.1}\" y1=\"{top}\" x2=\"{x:.1}\" y2=\"{:.1}\" stroke=\"#ddd\"/><text x=\"{x:.1}\" y=\"{:.1}\" text-anchor=\"middle\">1e{d}</text>",
-            h - bottom,
-            h - bottom + 16.0
+        p.line(&[[x, top], [x, h - bottom]], grid, 1.0);
+        p.text(
+            [x, h - bottom + 16.0],
+            &format!("1e{d}"),
+            12.0,
+            Anchor::Middle,
+            false,
         );
     }
     for d in (y0 as i32)..=(y1 as i32) {
         let y = py(f64::from(d));
-        let _ = writeln!(
-            s,
-            "<line x1=\"{left}\" y1=\"{y:.1}\" x2=\"{:.1}\" y2=\"{y:.1}\" stroke=\"#ddd\"/><text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"end\">1e{d}</text>",
-            w - right,
-            left - 6.0,
-            y + 4.0
+        p.line(&[[left, y], [w - right, y]], grid, 1.0);
+        p.text(
+            [left - 6.0, y + 4.0],
+            &format!("1e{d}"),
+            12.0,
+            Anchor::End,
+            false,
         );
     }
-    let _ = writeln!(
-        s,
-        "<text x=\"{:.1}\" y=\"{:.1}\" text-anchor=\"middle\">render time (ms)</text><text x=\"16\" y=\"{:.1}\" transform=\"rotate(-90 16 {:.1})\" text-anchor=\"middle\">RMSE</text>",
-        (left + w - right) / 2.0,
-        h - 12.0,
-        (top + h - bottom) / 2.0,
-        (top + h - bottom) / 2.0
+    p.text(
+        [(left + w - right) / 2.0, h - 12.0],
+        "render time (ms)",
+        12.0,
+        Anchor::Middle,
+        false,
+    );
+    p.text(
+        [16.0, (top + h - bottom) / 2.0],
+        "RMSE",
+        12.0,
+        Anchor::Middle,
+        true,
     );
     let colours = [
         "#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf",
@@ -426,48 +435,40 @@ pub fn svg(rows: &[Measured], title: &str) -> String {
         }
     }
     for (i, (name, ms_)) in series.iter().enumerate() {
-        let colour = colours[i % colours.len()];
-        let coords: Vec<String> = ms_
+        let colour = hex(colours[i % colours.len()]);
+        let coords: Vec<[f64; 2]> = ms_
             .iter()
-            .map(|m| {
-                format!(
-                    "{:.1},{:.1}",
-                    px(ms(m.time).max(1e-3).log10()),
-                    py(m.errors.rmse.log10())
-                )
-            })
+            .map(|m| [px(ms(m.time).max(1e-3).log10()), py(m.errors.rmse.log10())])
             .collect();
-        let _ = writeln!(
-            s,
-            "<polyline points=\"{}\" fill=\"none\" stroke=\"{colour}\" stroke-width=\"2\"/>",
-            coords.join(" ")
-        );
-        for c in &coords {
-            let (x, y) = c.split_once(',').unwrap_or(("0", "0"));
-            let _ = writeln!(
-                s,
-                "<circle cx=\"{x}\" cy=\"{y}\" r=\"3\" fill=\"{colour}\"/>"
-            );
+        p.line(&coords, colour, 2.0);
+        for &c in &coords {
+            p.dot(c, 3.0, colour);
         }
         let ly = top + 10.0 + 18.0 * i as f64;
-        let _ = writeln!(
-            s,
-            "<line x1=\"{:.1}\" y1=\"{ly:.1}\" x2=\"{:.1}\" y2=\"{ly:.1}\" stroke=\"{colour}\" stroke-width=\"2\"/><text x=\"{:.1}\" y=\"{:.1}\">{}</text>",
-            w - right + 10.0,
-            w - right + 30.0,
-            w - right + 36.0,
-            ly + 4.0,
-            escape(name)
+        p.line(
+            &[[w - right + 10.0, ly], [w - right + 30.0, ly]],
+            colour,
+            2.0,
+        );
+        p.text(
+            [w - right + 36.0, ly + 4.0],
+            name,
+            12.0,
+            Anchor::Start,
+            false,
         );
     }
-    s.push_str("</svg>\n");
-    s
+    p
 }
 
-fn escape(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
+/// `plot` as SVG (text is drawn by whatever shows it).
+pub fn svg(rows: &[Measured], title: &str) -> String {
+    plot(rows, title).to_svg()
+}
+
+/// `plot` rasterised at twice its size, text in the built-in bitmap font.
+pub fn png_image(rows: &[Measured], title: &str) -> image::RgbImage {
+    plot(rows, title).to_image(2.0)
 }
 
 /// The median of `times` (the upper one of an even count).

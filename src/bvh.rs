@@ -50,6 +50,31 @@ impl Default for Bvh {
     }
 }
 
+/// How good a tree is: what `glint info` and `render --stats` print.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct BvhStats {
+    pub nodes: usize,
+    pub leaves: usize,
+    pub depth: u32,
+    /// Primitives per leaf: mean and most.
+    pub mean_leaf: f64,
+    pub max_leaf: u32,
+    /// The surface area heuristic's expected cost of a ray through the
+    /// root box, in node visits and primitive tests (each counted 1): the
+    /// lower, the faster traversal should be.
+    pub sah_cost: f64,
+}
+
+impl std::fmt::Display for BvhStats {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(
+            f,
+            "{} nodes, {} leaves, depth {}, {:.2} primitives a leaf (at most {}), SAH cost {:.2}",
+            self.nodes, self.leaves, self.depth, self.mean_leaf, self.max_leaf, self.sah_cost
+        )
+    }
+}
+
 struct Prim {
     bounds: Bounds,
     centroid: DVec3,
@@ -57,6 +82,41 @@ struct Prim {
 }
 
 impl Bvh {
+    pub fn stats(&self) -> BvhStats {
+        let area = |n: &GpuBvhNode| {
+            let d = [0, 1, 2].map(|i| f64::from((n.max[i] - n.min[i]).max(0.0)));
+            2.0 * (d[0] * d[1] + d[1] * d[2] + d[2] * d[0])
+        };
+        let Some(root) = self.nodes.first() else {
+            return BvhStats::default();
+        };
+        let root_area = area(root);
+        let mut stats = BvhStats {
+            nodes: self.nodes.len(),
+            depth: self.depth,
+            ..BvhStats::default()
+        };
+        let mut prims = 0u64;
+        for n in &self.nodes {
+            // A flat root box (one triangle) makes every ratio 1.
+            let p = if root_area > 0.0 {
+                area(n) / root_area
+            } else {
+                1.0
+            };
+            if n.count > 0 {
+                stats.leaves += 1;
+                prims += u64::from(n.count);
+                stats.max_leaf = stats.max_leaf.max(n.count);
+                stats.sah_cost += p * INTERSECT_COST * f64::from(n.count);
+            } else {
+                stats.sah_cost += p * TRAVERSAL_COST;
+            }
+        }
+        stats.mean_leaf = prims as f64 / stats.leaves.max(1) as f64;
+        stats
+    }
+
     pub fn build(scene: &Scene) -> Bvh {
         Bvh::build_swept(scene, 0.0)
     }

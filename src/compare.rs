@@ -159,20 +159,81 @@ pub fn flip_mean(a: &RgbImage, b: &RgbImage) -> f32 {
     nv_flip::FlipPool::from_image(&error).mean()
 }
 
+/// The inferno colour map (as FLIP's error maps use): dark purple through
+/// red and orange to pale yellow, at `t` in [0, 1].
+fn inferno(t: f64) -> [u8; 3] {
+    const STOPS: [[f64; 3]; 5] = [
+        [0.0, 0.0, 4.0],
+        [87.0, 16.0, 110.0],
+        [188.0, 55.0, 84.0],
+        [249.0, 142.0, 9.0],
+        [252.0, 255.0, 164.0],
+    ];
+    let x = t.clamp(0.0, 1.0) * 4.0;
+    let i = (x.floor() as usize).min(3);
+    let f = x - i as f64;
+    [0, 1, 2].map(|c| (STOPS[i][c] + (STOPS[i + 1][c] - STOPS[i][c]) * f).round() as u8)
+}
+
+/// Pixels over the threshold are ringed only while they are this share of
+/// the image or less: a few lone pixels are then found at a glance, and many
+/// would only be cluttered by rings.
+const RING_SHARE: f64 = 0.01;
+const RING_RADIUS: i64 = 3;
+
 impl Comparison {
-    /// Differences made visible: black where equal, brighter with the
-    /// difference (x16), pure red where a pixel exceeds the threshold.
-    pub fn diff_image(&self) -> RgbImage {
-        let mut img = RgbImage::new(self.width, self.height);
-        for (px, d) in img.pixels_mut().zip(&self.diffs) {
-            let m = d[0].max(d[1]).max(d[2]);
-            px.0 = if m > self.threshold {
-                [255, 0, 0]
+    /// Differences made visible: the reference `a` faded to grey beneath,
+    /// every differing pixel in the inferno colour map by its difference
+    /// (from dark purple for the smallest to pale yellow at `diff_scale`),
+    /// and, when few pixels are over the threshold, a ring around each.
+    pub fn diff_image(&self, a: &RgbImage) -> RgbImage {
+        let (w, h) = (self.width, self.height);
+        let mut img = RgbImage::new(w, h);
+        let per_pixel = |d: &[f64; 3]| d[0].max(d[1]).max(d[2]);
+        let scale = self.diff_scale();
+        for ((px, d), src) in img.pixels_mut().zip(&self.diffs).zip(a.pixels()) {
+            let m = per_pixel(d);
+            px.0 = if m > 0.0 {
+                // The smallest difference still stands out from the grey.
+                inferno(0.3 + 0.7 * (m / scale))
             } else {
-                d.map(|c| (c * 16.0).min(255.0) as u8)
+                let [r, g, b] = src.0.map(f64::from);
+                let luma = 0.2126 * r + 0.7152 * g + 0.0722 * b;
+                [(40.0 + 0.3 * luma).round() as u8; 3]
             };
         }
+        let over = self.over_threshold as f64;
+        if over > 0.0 && over <= RING_SHARE * f64::from(w) * f64::from(h) {
+            let ring = inferno(1.0);
+            for (i, d) in self.diffs.iter().enumerate() {
+                if per_pixel(d) <= self.threshold {
+                    continue;
+                }
+                let (x, y) = ((i as u32 % w) as i64, (i as u32 / w) as i64);
+                for dy in -RING_RADIUS..=RING_RADIUS {
+                    for dx in -RING_RADIUS..=RING_RADIUS {
+                        if dx.abs().max(dy.abs()) != RING_RADIUS {
+                            continue;
+                        }
+                        let (u, v) = (x + dx, y + dy);
+                        if u < 0 || v < 0 || u >= i64::from(w) || v >= i64::from(h) {
+                            continue;
+                        }
+                        let j = v as usize * w as usize + u as usize;
+                        if per_pixel(&self.diffs[j]) == 0.0 {
+                            img.put_pixel(u as u32, v as u32, image::Rgb(ring));
+                        }
+                    }
+                }
+            }
+        }
         img
+    }
+
+    /// The difference (levels) shown at the top of the colour map: the
+    /// largest, or the threshold when that is larger.
+    pub fn diff_scale(&self) -> f64 {
+        self.max_abs.max(self.threshold).max(1e-9)
     }
 }
 
@@ -205,5 +266,43 @@ impl fmt::Display for Comparison {
             }
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Equal pixels show the reference as grey, differing ones are coloured
+    /// by their difference (larger: brighter), and a lone pixel over the
+    /// threshold is ringed so it is seen at 1:1.
+    #[test]
+    fn diff_image_fades_the_reference_and_colours_differences() {
+        let mut a = RgbImage::from_pixel(40, 30, image::Rgb([200, 100, 50]));
+        a.put_pixel(0, 0, image::Rgb([0, 0, 0]));
+        let mut b = a.clone();
+        b.put_pixel(10, 10, image::Rgb([200, 100, 52])); // 2 levels: over 1
+        b.put_pixel(30, 20, image::Rgb([201, 100, 50])); // 1 level: not over
+        let c = compare_images(&a, &b, 1.0).expect("same size");
+        let img = c.diff_image(&a);
+        let grey = |p: &image::Rgb<u8>| p.0[0] == p.0[1] && p.0[1] == p.0[2];
+        // The reference, faded: grey, darker where it is darker.
+        assert!(grey(img.get_pixel(5, 25)) && grey(img.get_pixel(0, 0)));
+        assert!(img.get_pixel(0, 0).0[0] < img.get_pixel(5, 25).0[0]);
+        assert!(img.get_pixel(5, 25).0[0] < 128, "faded");
+        // Differences in colour, the larger brighter.
+        let big = img.get_pixel(10, 10).0;
+        let small = img.get_pixel(30, 20).0;
+        assert!(!grey(img.get_pixel(10, 10)) && !grey(img.get_pixel(30, 20)));
+        let sum = |p: [u8; 3]| p.iter().map(|&v| u32::from(v)).sum::<u32>();
+        assert!(sum(big) > sum(small), "{big:?} {small:?}");
+        // A ring around the pixel over the threshold, none around the other.
+        assert_eq!(img.get_pixel(13, 10).0, inferno(1.0));
+        assert_eq!(img.get_pixel(7, 7).0, inferno(1.0));
+        assert!(grey(img.get_pixel(33, 20)));
+        assert!(
+            grey(img.get_pixel(12, 10)),
+            "inside the ring: the reference"
+        );
     }
 }

@@ -8,30 +8,32 @@ use crate::scene::ParseError;
 
 #[derive(Debug, thiserror::Error)]
 pub enum Error {
-    #[error("cannot read scene file {path}: {source}")]
+    // The I/O error is part of the message, not a `source`: a source is
+    // printed again by every error reporter that walks the chain.
+    #[error("cannot read scene file {path}: {error}")]
     ReadScene {
         path: PathBuf,
-        source: std::io::Error,
+        error: std::io::Error,
     },
     #[error(transparent)]
     Parse(#[from] ParseError),
     #[error(transparent)]
     Gpu(#[from] GpuError),
-    #[error("cannot write image {path}: {source}")]
+    #[error("cannot write image {path}: {error}")]
     WriteImage {
         path: PathBuf,
-        source: std::io::Error,
+        error: std::io::Error,
     },
     #[error("cannot read image {path}: {message}")]
     ReadImage { path: PathBuf, message: String },
-    #[error("{0}: unsupported image type; use a .png, .jpg, .jpeg or .exr file name")]
+    #[error("{0}: unsupported image type; use a .png, .jpg, .jpeg, .ppm or .exr file name")]
     UnsupportedImageFormat(PathBuf),
     #[error("images differ in size: {0}x{1} vs {2}x{3}")]
     SizeMismatch(u32, u32, u32, u32),
-    #[error("cannot write {path}: {source}")]
+    #[error("cannot write {path}: {error}")]
     WriteFile {
         path: PathBuf,
-        source: std::io::Error,
+        error: std::io::Error,
     },
     #[error("invalid option: {0}")]
     InvalidOption(String),

@@ -1,11 +1,11 @@
 //! A rendered image in linear [0, 1] RGB (f32), its 8-bit conversion, and
-//! reading and writing it (PNG, JPEG, float EXR) without ever leaving a
+//! reading and writing it (PNG, JPEG, PPM, float EXR) without ever leaving a
 //! half-written file.
 
 use std::io::Write;
 use std::path::Path;
 
-use image::RgbImage;
+use image::{DynamicImage, RgbImage};
 
 use crate::Error;
 
@@ -49,6 +49,8 @@ pub enum ImageFile {
     Jpeg,
     /// OpenEXR: linear f32 RGB, no quantization.
     Exr,
+    /// Binary PPM (P6), the course starter code's format.
+    Ppm,
 }
 
 impl ImageFile {
@@ -62,6 +64,7 @@ impl ImageFile {
             Some("png") => Ok(ImageFile::Png),
             Some("jpg" | "jpeg") => Ok(ImageFile::Jpeg),
             Some("exr") => Ok(ImageFile::Exr),
+            Some("ppm") => Ok(ImageFile::Ppm),
             _ => Err(Error::UnsupportedImageFormat(path.to_path_buf())),
         }
     }
@@ -72,43 +75,99 @@ impl ImageFile {
     }
 }
 
-/// Writes a render: as float values for .exr, else its 8-bit conversion as
-/// PNG or JPEG (`write_image`).
-pub fn write_framebuffer(fb: &Framebuffer, path: &Path, jpeg_quality: u8) -> Result<(), Error> {
-    if ImageFile::of(path)? != ImageFile::Exr {
-        return write_image(&fb.to_rgb8(), path, jpeg_quality);
+/// The image a render writes: its float values for a float format, else
+/// its 8-bit conversion.
+fn framebuffer_image(fb: &Framebuffer, kind: ImageFile) -> DynamicImage {
+    if !kind.is_float() {
+        return fb.to_rgb8().into();
     }
     let flat: Vec<f32> = fb.pixels.iter().flatten().copied().collect();
-    let img = image::Rgb32FImage::from_raw(fb.width, fb.height, flat)
-        .expect("pixel count matches width * height");
-    write_atomically(path, |w| {
-        img.write_with_encoder(image::codecs::openexr::OpenExrEncoder::new(w))
-    })
+    image::Rgb32FImage::from_raw(fb.width, fb.height, flat)
+        .expect("pixel count matches width * height")
+        .into()
 }
 
-/// Writes `img` as PNG or JPEG (chosen by the extension: .png, .jpg, .jpeg;
-/// .exr stores its 8-bit values as floats).
+/// Writes a render: as float values for .exr, else its 8-bit conversion as
+/// PNG, JPEG or PPM.
+pub fn write_framebuffer(fb: &Framebuffer, path: &Path, jpeg_quality: u8) -> Result<(), Error> {
+    let kind = ImageFile::of(path)?;
+    write_dynamic(&framebuffer_image(fb, kind), path, jpeg_quality)
+}
+
+/// Writes a render to standard output as `kind` (`glint render S -`).
+pub fn write_framebuffer_to_stdout(
+    fb: &Framebuffer,
+    kind: ImageFile,
+    jpeg_quality: u8,
+) -> Result<(), Error> {
+    write_dynamic_to_stdout(&framebuffer_image(fb, kind), kind, jpeg_quality)
+}
+
+/// Writes `img` as PNG, JPEG, PPM or EXR, chosen by the extension (.exr
+/// stores 8-bit values v / 255 as floats).
 pub fn write_image(img: &RgbImage, path: &Path, jpeg_quality: u8) -> Result<(), Error> {
-    match ImageFile::of(path)? {
-        ImageFile::Jpeg => write_atomically(path, |w| {
-            img.write_with_encoder(image::codecs::jpeg::JpegEncoder::new_with_quality(
-                w,
-                jpeg_quality,
-            ))
-        }),
-        ImageFile::Png => write_atomically(path, |w| {
-            img.write_with_encoder(image::codecs::png::PngEncoder::new(w))
-        }),
+    write_dynamic(&img.clone().into(), path, jpeg_quality)
+}
+
+/// Writes any image (RGB or RGBA, 8-bit or float) in the format `path`'s
+/// extension names, converting where the format needs it.
+pub(crate) fn write_dynamic(
+    img: &DynamicImage,
+    path: &Path,
+    jpeg_quality: u8,
+) -> Result<(), Error> {
+    let kind = ImageFile::of(path)?;
+    write_atomically(path, |w| encode(img, kind, jpeg_quality, w))
+}
+
+/// As `write_dynamic`, to standard output (encoded in memory first, as
+/// EXR's encoder seeks).
+pub(crate) fn write_dynamic_to_stdout(
+    img: &DynamicImage,
+    kind: ImageFile,
+    jpeg_quality: u8,
+) -> Result<(), Error> {
+    let wrap = |error: std::io::Error| Error::WriteImage {
+        path: "<standard output>".into(),
+        error,
+    };
+    let mut bytes = std::io::Cursor::new(Vec::new());
+    encode(img, kind, jpeg_quality, &mut bytes).map_err(|e| wrap(std::io::Error::other(e)))?;
+    let mut out = std::io::stdout().lock();
+    out.write_all(bytes.get_ref()).map_err(wrap)?;
+    out.flush().map_err(wrap)
+}
+
+fn encode<W: Write + std::io::Seek>(
+    img: &DynamicImage,
+    kind: ImageFile,
+    jpeg_quality: u8,
+    w: W,
+) -> image::ImageResult<()> {
+    use std::borrow::Cow;
+    // Converted only when the format needs another pixel type.
+    let rgb8 = || match img {
+        DynamicImage::ImageRgb8(_) => Cow::Borrowed(img),
+        _ => Cow::Owned(DynamicImage::from(img.to_rgb8())),
+    };
+    match kind {
+        ImageFile::Jpeg => rgb8().write_with_encoder(
+            image::codecs::jpeg::JpegEncoder::new_with_quality(w, jpeg_quality),
+        ),
+        ImageFile::Png => img.write_with_encoder(image::codecs::png::PngEncoder::new(w)),
+        ImageFile::Ppm => {
+            use image::codecs::pnm::{PnmEncoder, PnmSubtype, SampleEncoding};
+            rgb8().write_with_encoder(
+                PnmEncoder::new(w).with_subtype(PnmSubtype::Pixmap(SampleEncoding::Binary)),
+            )
+        }
         ImageFile::Exr => {
-            let fb = Framebuffer {
-                width: img.width(),
-                height: img.height(),
-                pixels: img
-                    .pixels()
-                    .map(|p| p.0.map(|c| f32::from(c) / 255.0))
-                    .collect(),
+            let float = match img {
+                DynamicImage::ImageRgb32F(_) | DynamicImage::ImageRgba32F(_) => Cow::Borrowed(img),
+                _ if img.color().has_alpha() => Cow::Owned(img.to_rgba32f().into()),
+                _ => Cow::Owned(img.to_rgb32f().into()),
             };
-            write_framebuffer(&fb, path, jpeg_quality)
+            float.write_with_encoder(image::codecs::openexr::OpenExrEncoder::new(w))
         }
     }
 }
@@ -159,9 +218,9 @@ fn write_atomically(
     path: &Path,
     encode: impl FnOnce(&mut Sink<'_>) -> image::ImageResult<()>,
 ) -> Result<(), Error> {
-    let wrap = |source: std::io::Error| Error::WriteImage {
+    let wrap = |error: std::io::Error| Error::WriteImage {
         path: path.to_path_buf(),
-        source,
+        error,
     };
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
@@ -224,7 +283,7 @@ pub fn remove_partial_files() {
     }
 }
 
-/// Reads a PNG, JPEG or EXR as 8-bit RGB (EXR values clamped and rounded
+/// Reads a PNG, JPEG, PPM or EXR as 8-bit RGB (EXR values clamped and rounded
 /// as the image convention says).
 pub fn read_image(path: &Path) -> Result<RgbImage, Error> {
     if ImageFile::of(path)?.is_float() {
@@ -233,7 +292,7 @@ pub fn read_image(path: &Path) -> Result<RgbImage, Error> {
     Ok(open(path)?.to_rgb8())
 }
 
-/// Reads a PNG, JPEG or EXR as linear float RGB (8-bit values v / 255).
+/// Reads a PNG, JPEG, PPM or EXR as linear float RGB (8-bit values v / 255).
 pub fn read_framebuffer(path: &Path) -> Result<Framebuffer, Error> {
     ImageFile::of(path)?;
     let img = open(path)?.to_rgb32f();

@@ -138,12 +138,7 @@ impl fmt::Display for SceneInfo<'_> {
             }
             writeln!(f)?;
         }
-        writeln!(
-            f,
-            "bvh         {} nodes, depth {}",
-            self.bvh.nodes.len(),
-            self.bvh.depth
-        )?;
+        writeln!(f, "bvh         {}", self.bvh.stats())?;
         let e = &self.effects;
         writeln!(
             f,

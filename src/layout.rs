@@ -110,6 +110,11 @@ pub struct GpuStatus {
     pub cut: u32,
     /// The smallest cut pixel index, `y * width + x` (`u32::MAX`: none).
     pub first_cut: u32,
+    /// Closest-hit rays (primary and reflected) cast in the pass.
+    pub closest_rays: u32,
+    /// Shadow rays cast in the pass (one per point light, or per
+    /// area-light sample, at every shaded point).
+    pub shadow_rays: u32,
     pub _pad: u32,
 }
 
@@ -119,6 +124,8 @@ impl GpuStatus {
         remaining: 0,
         cut: 0,
         first_cut: u32::MAX,
+        closest_rays: 0,
+        shadow_rays: 0,
         _pad: 0,
     };
 }

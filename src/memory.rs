@@ -104,6 +104,15 @@ pub fn available() -> Option<u64> {
     }
 }
 
+/// The most resident memory this process has held so far (`VmHWM` of
+/// /proc/self/status); `None` where it cannot be read (not Linux).
+pub fn peak_resident() -> Option<u64> {
+    let status = std::fs::read_to_string("/proc/self/status").ok()?;
+    let line = status.lines().find(|l| l.starts_with("VmHWM:"))?;
+    let kb: u64 = line.split_whitespace().nth(1)?.parse().ok()?;
+    Some(kb * 1024)
+}
+
 /// The memory cgroup's limit minus its usage, when it has a limit.
 fn cgroup_headroom() -> Option<u64> {
     let read =

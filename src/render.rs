@@ -15,13 +15,17 @@ use crate::probe::{PathRecord, ProbeImage};
 use crate::progressive::{
     Accumulator, Blocks, PassReport, Progressive, StopAt, Stopped, MIN_PASSES_FOR_TARGET,
 };
+use crate::region::Crop;
 use crate::scene::{Effects, Scene, Settings};
 use crate::timing::Timings;
 use crate::Error;
 
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
 pub enum Backend {
-    /// The best Vulkan device, else the CPU reference (with a note saying why).
+    /// The best hardware Vulkan device; the CPU reference when there is
+    /// none, or only a software one such as lavapipe, which is slower than
+    /// the CPU reference on the same cores (with a note saying why).
+    /// A `device` asked for is always used.
     #[default]
     Auto,
     Gpu,
@@ -97,6 +101,41 @@ pub struct RenderOutput {
     /// Host memory the render needed beyond the scene and its BVH (checked
     /// against what was available before it started).
     pub memory: MemoryNeed,
+    /// The tree it traversed.
+    pub bvh: crate::bvh::BvhStats,
+    /// Samples it took, over all pixels it rendered.
+    pub samples: u64,
+}
+
+/// Which pixels a render computes; the others are left 0.
+#[derive(Clone, Copy)]
+enum Region<'a> {
+    All,
+    /// The active blocks of a progressive render.
+    Blocks(&'a Blocks),
+    Crop(Crop),
+}
+
+impl Region<'_> {
+    fn pixels(&self, width: u32, height: u32) -> u64 {
+        match self {
+            Region::All => u64::from(width) * u64::from(height),
+            Region::Blocks(b) => b
+                .rects()
+                .iter()
+                .map(|r| u64::from(r[2]) * u64::from(r[3]))
+                .sum(),
+            Region::Crop(c) => c.pixels(),
+        }
+    }
+
+    fn keeps(&self, x: u32, y: u32) -> bool {
+        match self {
+            Region::All => true,
+            Region::Blocks(b) => b.is_active(x, y),
+            Region::Crop(c) => c.contains(x, y),
+        }
+    }
 }
 
 /// Where the work runs, chosen once from `RenderOptions`.
@@ -170,6 +209,20 @@ impl Renderer {
             };
             let start = Instant::now();
             match Context::new(&context_options) {
+                // Lavapipe renders the same image as the CPU reference, only
+                // slower on the same cores (README, "Choosing a device").
+                Ok(ctx)
+                    if options.backend == Backend::Auto
+                        && options.device.is_none()
+                        && ctx.info().device_type == "CPU" =>
+                {
+                    note = Some(format!(
+                        "the only Vulkan device is a software one ({}), slower than the CPU \
+                         reference on the same cores; rendered on the CPU reference \
+                         (`--backend gpu` uses the device)",
+                        ctx.info().name
+                    ));
+                }
                 Ok(ctx) => {
                     timings.add("device", start.elapsed());
                     let renderer = Box::new(GpuRenderer::new(&ctx)?);
@@ -203,6 +256,16 @@ impl Renderer {
 
     pub fn is_gpu(&self) -> bool {
         matches!(self.engine, Engine::Gpu { .. })
+    }
+
+    /// The GPU renderer this one drives (None on the CPU), for benchmarks
+    /// that measure below a render (probe kernels, uncached pipeline
+    /// builds) on the device the `Renderer` chose.
+    pub fn gpu(&self) -> Option<&GpuRenderer> {
+        match &self.engine {
+            Engine::Gpu { renderer, .. } => Some(renderer),
+            Engine::Cpu(_) => None,
+        }
     }
 
     /// What renders, e.g. "GPU: llvmpipe (cpu, ...)" or "CPU reference (f32, 2 threads)".
@@ -274,16 +337,39 @@ impl Renderer {
         }
     }
 
-    /// Renders `scene`; `progress(done, total)` counts tiles (GPU) or rows (CPU).
+    /// Renders `scene`; `progress(done, total)` counts pixels finished (GPU)
+    /// or rows (CPU, taken in an order spread over the image, so that the
+    /// share done tracks the share of time spent).
     pub fn render(
         &self,
         scene: &Scene,
         progress: &(dyn Fn(u64, u64) + Sync),
     ) -> Result<RenderOutput, Error> {
+        self.render_region(scene, Region::All, progress)
+    }
+
+    /// Renders only the pixels inside `crop` (the others are 0), each with
+    /// the value a full render gives it.
+    pub fn render_crop(
+        &self,
+        scene: &Scene,
+        crop: Crop,
+        progress: &(dyn Fn(u64, u64) + Sync),
+    ) -> Result<RenderOutput, Error> {
+        crop.check(self.options.width, self.options.height)?;
+        self.render_region(scene, Region::Crop(crop), progress)
+    }
+
+    fn render_region(
+        &self,
+        scene: &Scene,
+        region: Region,
+        progress: &(dyn Fn(u64, u64) + Sync),
+    ) -> Result<RenderOutput, Error> {
         let mut timings = self.take_setup_timings();
         let p = self.prepare(scene, &mut timings);
         let packed = self.pack(scene, &p, &mut timings);
-        self.render_prepared(scene, &p, packed.as_ref(), timings, None, progress)
+        self.render_prepared(scene, &p, packed.as_ref(), timings, region, progress)
     }
 
     /// Makes `scene` ready for repeated renders (camera, BVH, packed data),
@@ -312,7 +398,7 @@ impl Renderer {
             &ready.prepared,
             ready.packed.as_ref(),
             timings,
-            None,
+            Region::All,
             progress,
         )
     }
@@ -344,13 +430,20 @@ impl Renderer {
             } else {
                 Timings::default()
             };
-            let some = (!blocks.all_active()).then_some(&blocks);
+            let region = if blocks.all_active() {
+                Region::All
+            } else {
+                Region::Blocks(&blocks)
+            };
             let out =
-                self.render_prepared(scene, &p, packed.as_ref(), pass_timings, some, &|_, _| {})?;
+                self.render_prepared(scene, &p, packed.as_ref(), pass_timings, region, &|_, _| {})?;
             acc.add_where(&out.framebuffer, &|x, y| blocks.is_active(x, y));
             match last.as_mut() {
                 None => last = Some(out),
-                Some(l) => l.timings.extend(&out.timings),
+                Some(l) => {
+                    l.timings.extend(&out.timings);
+                    l.samples += out.samples;
+                }
             }
             let mut done_blocks = false;
             if let (true, Some(target)) = (stop.adaptive, stop.aim()) {
@@ -411,7 +504,7 @@ impl Renderer {
         p: &Prepared,
         packed: Option<&GpuScene>,
         mut timings: Timings,
-        blocks: Option<&Blocks>,
+        region: Region,
         progress: &(dyn Fn(u64, u64) + Sync),
     ) -> Result<RenderOutput, Error> {
         let mut need = MemoryNeed::image(p.camera.width, p.camera.height);
@@ -436,11 +529,24 @@ impl Renderer {
                 need.check(memory::available())?;
                 let options = self.gpu_options(p);
                 let bg = self.options.background;
-                let (framebuffer, gpu_timings) = match blocks {
-                    Some(b) => {
-                        renderer.render_rects(packed, &p.camera, bg, &options, &b.rects())?
-                    }
-                    None => renderer.render(packed, &p.camera, bg, &options, progress)?,
+                let (framebuffer, gpu_timings) = match region {
+                    Region::All => renderer.render(packed, &p.camera, bg, &options, progress)?,
+                    Region::Blocks(b) => renderer.render_rects(
+                        packed,
+                        &p.camera,
+                        bg,
+                        &options,
+                        &b.rects(),
+                        progress,
+                    )?,
+                    Region::Crop(c) => renderer.render_rects(
+                        packed,
+                        &p.camera,
+                        bg,
+                        &options,
+                        &[c.rect()],
+                        progress,
+                    )?,
                 };
                 timings.extend(&gpu_timings);
                 framebuffer
@@ -449,13 +555,17 @@ impl Renderer {
                 need.check(memory::available())?;
                 let start = Instant::now();
                 let options = self.cpu_options(p, *precision);
-                let framebuffer = match blocks {
-                    Some(b) => cpu::render_where(scene, &p.bvh, &p.camera, &options, &|x, y| {
-                        b.is_active(x, y)
-                    }),
-                    None => cpu::render(scene, &p.bvh, &p.camera, &options, progress),
-                };
+                let (framebuffer, rays) = cpu::render_where(
+                    scene,
+                    &p.bvh,
+                    &p.camera,
+                    &options,
+                    &|x, y| region.keeps(x, y),
+                    progress,
+                );
                 timings.add("cpu render", start.elapsed());
+                timings.count(crate::timing::CLOSEST_RAYS, rays[0]);
+                timings.count(crate::timing::SHADOW_RAYS, rays[1]);
                 framebuffer
             }
         };
@@ -466,6 +576,8 @@ impl Renderer {
             timings,
             note: self.note.clone(),
             memory: need,
+            bvh: p.bvh.stats(),
+            samples: region.pixels(p.camera.width, p.camera.height) * u64::from(p.effects.spp),
         })
     }
 

@@ -4,6 +4,14 @@
 use std::fmt;
 use std::time::{Duration, Instant};
 
+/// The count of closest-hit rays (primary and reflected) a render cast.
+pub const CLOSEST_RAYS: &str = "closest rays";
+/// The count of shadow rays a render cast.
+pub const SHADOW_RAYS: &str = "shadow rays";
+/// Nanoseconds the device spent in a render's dispatches, from Vulkan
+/// timestamps around each (absent where the queue has none).
+pub const GPU_TIME_NS: &str = "gpu ns";
+
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Timings {
     pub phases: Vec<(&'static str, Duration)>,
@@ -36,6 +44,11 @@ impl Timings {
             Some((_, total)) => *total += n,
             None => self.counts.push((name, n)),
         }
+    }
+
+    /// Whether a count was recorded under `name`.
+    pub fn has_count(&self, name: &str) -> bool {
+        self.counts.iter().any(|(c, _)| *c == name)
     }
 
     /// The count recorded under `name`, 0 if none.

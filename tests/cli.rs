@@ -155,7 +155,7 @@ fn unsupported_output_type_exits_2_and_says_which_types_work() {
     let o = glint(&args, d.path());
     assert_eq!(o.status.code(), Some(2));
     assert!(
-        stderr(&o).contains("use a .png, .jpg, .jpeg or .exr file name"),
+        stderr(&o).contains("use a .png, .jpg, .jpeg, .ppm or .exr file name"),
         "{}",
         stderr(&o)
     );
@@ -743,6 +743,19 @@ fn accuracy_sweeps_and_caches_its_reference() {
         svg.starts_with("<svg") && svg.contains("<polyline"),
         "{svg}"
     );
+    // The PNG is the same plot at twice the size, drawn here.
+    let png = image::open(d.path().join("acc/accuracy.png"))
+        .expect("png")
+        .to_rgb8();
+    assert_eq!((png.width(), png.height()), (1440, 960));
+    let coloured = png
+        .pixels()
+        .filter(|p| p.0.iter().max() != p.0.iter().min())
+        .count();
+    assert!(
+        coloured > 500,
+        "plot lines drawn: {coloured} coloured pixels"
+    );
     assert!(
         stderr(&o).contains("rendering the reference"),
         "{}",
@@ -847,4 +860,290 @@ fn unwritable_outputs_are_refused_before_rendering() {
         "{}",
         stderr(&o)
     );
+}
+
+fn glint_with_stdin(args: &[&str], dir: &Path, input: &[u8]) -> Output {
+    use std::io::Write;
+    let mut child = Command::new(env!("CARGO_BIN_EXE_glint"))
+        .args(args)
+        .current_dir(dir)
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::piped())
+        .spawn()
+        .expect("start glint");
+    // glint may refuse the arguments and exit before reading a byte.
+    let _ = child.stdin.take().expect("stdin").write_all(input);
+    child.wait_with_output().expect("wait")
+}
+
+/// `-` reads the scene from standard input and writes a PNG to standard
+/// output; the messages then go to stderr, so the PNG stays clean.
+#[test]
+fn dash_reads_the_scene_from_stdin_and_writes_png_to_stdout() {
+    let d = tmp();
+    let text = std::fs::read(repo_path("scenes/showcase.scene")).expect("scene");
+    let mut args = vec!["render", "-", "-", "--backend", "cpu"];
+    args.extend(SMALL);
+    let o = glint_with_stdin(&args, d.path(), &text);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(o.stdout.starts_with(b"\x89PNG\r\n\x1a\n"), "not a PNG");
+    assert!(
+        stderr(&o).contains("wrote standard output"),
+        "{}",
+        stderr(&o)
+    );
+    let piped = image::load_from_memory(&o.stdout).expect("PNG").to_rgb8();
+
+    let scene = showcase();
+    let mut args = vec!["render", &scene, "f.png", "--backend", "cpu"];
+    args.extend(SMALL);
+    let o = glint(&args, d.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let file = image::open(d.path().join("f.png")).expect("png").to_rgb8();
+    assert_eq!(piped, file);
+
+    // A scene from stdin is named <stdin> in its errors.
+    let o = glint_with_stdin(
+        &["render", "-", "x.png"],
+        d.path(),
+        b"1\nsphere\npos: 0 0\n",
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("<stdin>:2:1"), "{}", stderr(&o));
+    let o = glint_with_stdin(&["info", "-"], d.path(), &text);
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(stdout(&o).contains("spheres     6"), "{}", stdout(&o));
+    // One image on stdout: frames are refused before any work.
+    let o = glint_with_stdin(&["render", "-", "-", "--frames", "2"], d.path(), &text);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}
+
+/// `--crop` parts, rendered on either backend and in either format, stitch
+/// to exactly the image one render makes; a gap or a bad crop is refused.
+#[test]
+fn crop_parts_stitch_to_the_full_image() {
+    let d = tmp();
+    let scene = repo_path("scenes/effects/all_effects.scene")
+        .display()
+        .to_string();
+    let size = ["--width", "48", "--height", "36", "--spp", "2"];
+    let backends: Vec<&str> = if gpu().is_some() {
+        vec!["cpu", "gpu"]
+    } else {
+        vec!["cpu"]
+    };
+    for backend in backends {
+        let run = |extra: &[&str]| {
+            let mut args = vec!["render", &scene, "--backend", backend];
+            args.extend(size);
+            args.extend(extra);
+            let o = glint(&args, d.path());
+            assert_eq!(o.status.code(), Some(0), "{backend}: {}", stderr(&o));
+        };
+        run(&["full.exr"]);
+        run(&["full.png"]);
+        run(&["top.exr", "--crop", "0,0,48,20"]);
+        run(&["left.png", "--crop", "0,20,17,36"]);
+        run(&["right.exr", "--crop", "17,20,48,36"]);
+        let o = glint(
+            &["stitch", "joined.exr", "top.exr", "left.png", "right.exr"],
+            d.path(),
+        );
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        let o = glint(
+            &["stitch", "j.png", "top.exr", "right.exr", "left.png"],
+            d.path(),
+        );
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        let png = |n: &str| image::open(d.path().join(n)).expect(n).to_rgb8();
+        assert_eq!(png("j.png"), png("full.png"), "{backend}: 8-bit join");
+        // All-float parts keep every float bit.
+        run(&["left.exr", "--crop", "0,20,17,36"]);
+        let o = glint(
+            &["stitch", "f.exr", "top.exr", "left.exr", "right.exr"],
+            d.path(),
+        );
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        let float = |n: &str| image::open(d.path().join(n)).expect(n).to_rgb32f();
+        assert_eq!(float("f.exr"), float("full.exr"), "{backend}: float join");
+
+        let o = glint(&["stitch", "gap.png", "top.exr", "right.exr"], d.path());
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(
+            stderr(&o).contains("leave 272 of the 48x36 pixels uncovered, within 0,20,17,36"),
+            "{}",
+            stderr(&o)
+        );
+        assert!(!d.path().join("gap.png").exists());
+    }
+    for (crop, out, want) in [
+        ("0,0,49,10", "x.png", "reaches outside the 48x36 image"),
+        ("0,0,10,10", "x.jpg", "write .png or .exr"),
+        ("5,5,5,9", "x.png", "X0 < X1"),
+    ] {
+        let mut args = vec!["render", &scene, out, "--crop", crop];
+        args.extend(size);
+        let o = glint(&args, d.path());
+        assert_eq!(o.status.code(), Some(2), "{crop}: {}", stderr(&o));
+        assert!(stderr(&o).contains(want), "{crop}: {}", stderr(&o));
+    }
+    let o = glint(&["stitch", "x.png", "full.png"], d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("no alpha channel"), "{}", stderr(&o));
+}
+
+/// The rays line of `--stats`: closest-hit and shadow counts.
+fn stats_rays(out: &str) -> [u64; 4] {
+    let line = out
+        .lines()
+        .find(|l| l.trim_start().starts_with("rays "))
+        .unwrap_or_else(|| panic!("no rays line in\n{out}"));
+    let numbers: Vec<u64> = line
+        .split(|c: char| !c.is_ascii_digit() && c != '.')
+        .filter_map(|w| w.parse().ok())
+        .collect();
+    [numbers[0], numbers[1], numbers[2], numbers[3]]
+}
+
+/// `--stats` counts rays by kind, and the shader counts the same rays as
+/// the CPU reference; `--quick` is the documented preview; `--threads`
+/// sizes the CPU pool.
+#[test]
+fn stats_quick_and_threads() {
+    let d = tmp();
+    let scene = repo_path("scenes/effects/all_effects.scene")
+        .display()
+        .to_string();
+    let run = |backend: &str, extra: &[&str]| {
+        let mut args = vec!["render", &scene, "s.png", "--backend", backend, "--stats"];
+        args.extend(extra);
+        let o = glint(&args, d.path());
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        stdout(&o)
+    };
+    let size = ["--width", "40", "--height", "30", "--spp", "2"];
+    let cpu = run("cpu", &size);
+    let [all, primary, reflected, shadow] = stats_rays(&cpu);
+    assert_eq!(primary, 40 * 30 * 2, "{cpu}");
+    assert!(reflected > 0 && shadow > primary, "{cpu}");
+    assert_eq!(all, primary + reflected + shadow, "{cpu}");
+    assert!(cpu.contains("samples     2400"), "{cpu}");
+    assert!(cpu.contains("SAH cost"), "{cpu}");
+    assert!(cpu.contains("peak memory"), "{cpu}");
+    if gpu().is_some() {
+        let gpu_out = run("gpu", &size);
+        let g = stats_rays(&gpu_out);
+        // The twins trace the same rays; a pixel whose f32 hit differs
+        // could change a few.
+        for (a, b) in g.iter().zip([all, primary, reflected, shadow]) {
+            assert!(a.abs_diff(b) * 1000 <= b, "GPU {g:?} vs CPU {cpu}");
+        }
+    }
+
+    // --quick: half size, 1 sample, 1 shadow sample, no reflection.
+    let quick = run("cpu", &["--quick"]);
+    assert!(quick.contains("(320x240,"), "{quick}");
+    let [_, primary, reflected, _] = stats_rays(&quick);
+    assert_eq!((primary, reflected), (320 * 240, 0), "{quick}");
+    // Flags beside it win.
+    let quick = run(
+        "cpu",
+        &["--quick", "--spp", "3", "--width", "64", "--height", "48"],
+    );
+    assert!(quick.contains("(32x24,"), "{quick}");
+    assert_eq!(stats_rays(&quick)[1], 32 * 24 * 3, "{quick}");
+
+    let one = run("cpu", &["--threads", "1", "--width", "8", "--height", "8"]);
+    assert!(one.contains("1 threads"), "{one}");
+    let o = Command::new(env!("CARGO_BIN_EXE_glint"))
+        .args([
+            "render",
+            &scene,
+            "e.png",
+            "--backend",
+            "cpu",
+            "--width",
+            "8",
+            "--height",
+            "8",
+        ])
+        .env("RAYON_NUM_THREADS", "3")
+        .current_dir(d.path())
+        .output()
+        .expect("run glint");
+    assert!(stdout(&o).contains("3 threads"), "{}", stdout(&o));
+    let o = glint(&["render", &scene, "--threads", "0"], d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}
+
+/// PPM is written (binary P6) and read back by compare.
+#[test]
+fn ppm_is_written_and_compared() {
+    let d = tmp();
+    for out in ["a.ppm", "a.png"] {
+        let scene = showcase();
+        let mut args = vec!["render", &scene, out, "--backend", "cpu"];
+        args.extend(SMALL);
+        let o = glint(&args, d.path());
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    }
+    let bytes = std::fs::read(d.path().join("a.ppm")).expect("ppm");
+    assert!(bytes.starts_with(b"P6"), "binary PPM");
+    let o = glint(&["compare", "a.ppm", "a.png", "--fail"], d.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stdout(&o));
+    assert!(
+        stdout(&o).contains("max abs diff    0.000"),
+        "{}",
+        stdout(&o)
+    );
+}
+
+/// With only a software Vulkan device, auto renders on the CPU reference
+/// (faster there) and says so; a hardware device is used.
+#[test]
+fn auto_prefers_the_cpu_reference_over_a_software_device() {
+    let Some(g) = gpu() else {
+        return;
+    };
+    let software = g
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .ctx
+        .info()
+        .device_type
+        == "CPU";
+    let d = tmp();
+    let scene = showcase();
+    let mut args = vec!["render", &scene, "a.png"];
+    args.extend(SMALL);
+    let o = glint(&args, d.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    if software {
+        assert!(stdout(&o).contains("CPU reference"), "{}", stdout(&o));
+        assert!(
+            stderr(&o).contains("software one") && stderr(&o).contains("`--backend gpu`"),
+            "{}",
+            stderr(&o)
+        );
+        // A device asked for is used.
+        args.extend(["--device", "0"]);
+        let o = glint(&args, d.path());
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        assert!(stdout(&o).contains("GPU:"), "{}", stdout(&o));
+    } else {
+        assert!(stdout(&o).contains("GPU:"), "{}", stdout(&o));
+    }
+}
+
+/// An I/O error is said once, not once more by the error chain.
+#[test]
+fn an_os_error_is_printed_once() {
+    let d = tmp();
+    std::fs::create_dir(d.path().join("adir")).expect("mkdir");
+    let o = glint(&["render", "adir", "x.png", "--backend", "cpu"], d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let err = stderr(&o);
+    assert!(err.contains("cannot read scene file adir"), "{err}");
+    assert_eq!(err.matches("os error").count(), 1, "{err}");
 }

@@ -93,7 +93,12 @@ fn structs_match() {
             _pad
         ]
     );
-    check_struct!(m, "Status", GpuStatus, [remaining, cut, first_cut, _pad]);
+    check_struct!(
+        m,
+        "Status",
+        GpuStatus,
+        [remaining, cut, first_cut, closest_rays, shadow_rays, _pad]
+    );
     check_struct!(
         m,
         "Sphere",

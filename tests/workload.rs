@@ -363,3 +363,61 @@ fn memory_stays_flat_over_many_frames() {
         grown / 1024
     );
 }
+
+/// Progress is reported after every pass, in pixels finished: it never goes
+/// back, moves within a tile (not only when the tile ends), and ends at
+/// every pixel. Rays are counted per pass, each pass's counts once.
+#[test]
+fn progress_counts_pixels_pass_by_pass() {
+    let Some(gpu) = gpu() else {
+        return;
+    };
+    let gpu = gpu.lock().unwrap_or_else(|e| e.into_inner());
+    let scene = effect_scene("soft_shadows");
+    let effects = Effects::resolve(&scene.settings);
+    let packed = GpuScene::pack(&scene, &Bvh::for_render(&scene, &effects));
+    let (w, h) = (48, 40);
+    let calls = std::sync::Mutex::new(Vec::new());
+    let record = |done: u64, total: u64| {
+        calls
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push((done, total));
+    };
+    let run = |pass_budget: u32, progress: &(dyn Fn(u64, u64) + Sync)| {
+        let options = GpuRenderOptions {
+            tile_size: 32,
+            pass_budget,
+            effects,
+            features: Features::of(&scene, &effects),
+            ..Default::default()
+        };
+        gpu.renderer
+            .render(&packed, &Camera::new(w, h), WHITE, &options, progress)
+            .expect("GPU render succeeds")
+    };
+    let (fb, timings) = run(64, &record);
+    let calls = calls.into_inner().unwrap_or_else(|e| e.into_inner());
+    let total = u64::from(w * h);
+    assert!(calls.iter().all(|&(_, t)| t == total), "{calls:?}");
+    assert!(calls.windows(2).all(|p| p[0].0 <= p[1].0), "{calls:?}");
+    assert_eq!(calls.last().map(|c| c.0), Some(total));
+    let tiles = 4; // 48x40 in 32x32 tiles
+    assert!(
+        calls.len() > tiles && calls.len() as u64 == timings.counted("passes"),
+        "one call per pass: {} calls, {} passes",
+        calls.len(),
+        timings.counted("passes")
+    );
+    // Passes do not change the image, nor the rays counted.
+    let (one, one_timings) = run(1 << 20, &|_, _| {});
+    assert_eq!(fb, one);
+    for kind in [glint::timing::CLOSEST_RAYS, glint::timing::SHADOW_RAYS] {
+        assert!(timings.has_count(kind), "{kind}");
+        assert_eq!(timings.counted(kind), one_timings.counted(kind), "{kind}");
+    }
+    assert_eq!(
+        timings.counted(glint::timing::CLOSEST_RAYS),
+        total * u64::from(effects.spp)
+    );
+}

@@ -1,7 +1,8 @@
 //! The hard-case suite as a benchmark (`glint bench hard`): failure counts
-//! per case, backend and methods, and what the robust methods cost. It
-//! drives `GpuRenderer` directly: its probe kernels and per-methods
-//! pipelines sit below `render::Renderer`.
+//! per case, backend and methods, and what the robust methods cost. It gets
+//! its device from a `render::Renderer` and drives that renderer's
+//! `GpuRenderer` directly: probe kernels and per-methods pipelines sit below
+//! a render.
 
 use std::fmt::Write as _;
 use std::time::Instant;
@@ -10,10 +11,11 @@ use super::{Stat, CLASSIC_DIR};
 use crate::bvh::Bvh;
 use crate::camera::Camera;
 use crate::cpu::{self, CpuOptions};
-use crate::gpu::{Context, ContextOptions, DeviceSelector, GpuRenderOptions, GpuRenderer};
+use crate::gpu::{DeviceSelector, GpuRenderOptions};
 use crate::info::Features;
 use crate::layout::GpuScene;
 use crate::methods::Methods;
+use crate::render::{Backend, RenderOptions, Renderer};
 use crate::scene::{read_scene, Effects};
 use crate::Error;
 
@@ -46,23 +48,25 @@ pub fn run_hard(
 ) -> Result<HardReport, Error> {
     use crate::hard;
     let mut out = String::new();
-    let renderer = if options.gpu {
-        let ctx = Context::new(&ContextOptions {
+    let device = if options.gpu {
+        let r = Renderer::new(&RenderOptions {
+            backend: Backend::Gpu,
             device: options.device.clone(),
-            validation: false,
+            ..RenderOptions::default()
         })?;
-        let _ = writeln!(out, "GPU: {} ({})", ctx.info().name, ctx.info().driver);
-        Some(GpuRenderer::new(&ctx)?)
+        let _ = writeln!(out, "{}", r.name());
+        Some(r)
     } else {
         None
     };
+    let renderer = device.as_ref().and_then(Renderer::gpu);
     let _ = writeln!(
         out,
         "CPU reference: {} threads. Counts are pixels, against the CPU f64 reference with \
          robust methods; `-`: not checked for that case.\n",
         rayon::current_num_threads()
     );
-    let rows = hard::run(renderer.as_ref(), &Methods::ALL, options.examples, progress)?;
+    let rows = hard::run(renderer, &Methods::ALL, options.examples, progress)?;
     let robust_failures = rows
         .iter()
         .filter(|r| r.methods == Methods::Robust)
@@ -115,7 +119,7 @@ pub fn run_hard(
             let bvh = Bvh::build(scene);
             let packed = GpuScene::pack(scene, &bvh);
             let bg = [1.0; 3];
-            for runner in hard::runners(renderer.as_ref()) {
+            for runner in hard::runners(renderer) {
                 // Interleaved so that drift (thermal, other load) hits both alike.
                 let mut samples = [Vec::new(), Vec::new()];
                 for i in 0..=options.repeat {

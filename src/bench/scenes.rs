@@ -32,6 +32,9 @@ pub struct SceneResult {
     pub name: String,
     pub primitives: usize,
     pub bvh: Stat,
+    /// Rays one render casts (closest-hit and shadow), as counted by the
+    /// last backend that rendered it; all backends cast the same rays.
+    pub rays: Option<u64>,
     /// Upload + dispatch + readback, per render.
     pub gpu: Option<Stat>,
     pub cpu_f32: Option<Stat>,
@@ -110,12 +113,19 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
             gpu: None,
             cpu_f32: None,
             cpu_f64: None,
+            rays: None,
+        };
+        let count = |t: &crate::timing::Timings| {
+            use crate::timing::{CLOSEST_RAYS, SHADOW_RAYS};
+            t.has_count(CLOSEST_RAYS)
+                .then(|| t.counted(CLOSEST_RAYS) + t.counted(SHADOW_RAYS))
         };
         if let Some(r) = &gpu {
             pipelines += r.prepare_pipeline(&scene)?;
             let ready = r.prepare_scene(&scene);
             // One untimed render first: drivers compile lazily on first use.
-            r.render_prepared_scene(&scene, &ready, &|_, _| {})?;
+            let first = r.render_prepared_scene(&scene, &ready, &|_, _| {})?;
+            result.rays = count(&first.timings).or(result.rays);
             result.gpu = repeat(n, || {
                 r.render_prepared_scene(&scene, &ready, &|_, _| {})?;
                 Ok(())
@@ -128,10 +138,13 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
         ] {
             if let Some(r) = renderer {
                 let ready = r.prepare_scene(&scene);
+                let mut rays = None;
                 *slot = repeat(n, || {
-                    r.render_prepared_scene(&scene, &ready, &|_, _| {})?;
+                    let out = r.render_prepared_scene(&scene, &ready, &|_, _| {})?;
+                    rays = count(&out.timings);
                     Ok(())
                 })?;
+                result.rays = rays.or(result.rays);
                 progress(&format!("{name}: {} {:.1} ms", r.name(), ms(*slot)));
             }
         }
@@ -148,10 +161,18 @@ fn ms(s: Option<Stat>) -> f64 {
 }
 
 impl BenchReport {
-    /// A Markdown table of medians (min-max in brackets), in milliseconds.
+    /// A Markdown table of medians (min-max in brackets), in milliseconds,
+    /// with the rays per second each median gives.
     pub fn to_markdown(&self) -> String {
         let mut out = String::new();
         let cell = |s: Option<Stat>| s.map_or_else(|| "-".into(), |s| s.to_string());
+        let timed = |s: Option<Stat>, rays: Option<u64>| match (s, rays) {
+            (Some(s), Some(r)) => format!(
+                "{s} · {:.2} Mray/s",
+                r as f64 / s.median.as_secs_f64().max(1e-9) / 1e6
+            ),
+            _ => cell(s),
+        };
         let _ = writeln!(
             out,
             "{}x{}, median of {} runs (min-max), milliseconds; CPU reference on {} threads",
@@ -168,19 +189,20 @@ impl BenchReport {
         let _ = writeln!(out);
         let _ = writeln!(
             out,
-            "| scene | primitives | BVH build | GPU render | CPU f32 | CPU f64 |"
+            "| scene | primitives | rays | BVH build | GPU render | CPU f32 | CPU f64 |"
         );
-        let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|");
+        let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|---:|");
         for s in &self.scenes {
             let _ = writeln!(
                 out,
-                "| {} | {} | {} | {} | {} | {} |",
+                "| {} | {} | {} | {} | {} | {} | {} |",
                 s.name,
                 s.primitives,
+                s.rays.map_or_else(|| "-".into(), |r| r.to_string()),
                 cell(Some(s.bvh)),
-                cell(s.gpu),
-                cell(s.cpu_f32),
-                cell(s.cpu_f64)
+                timed(s.gpu, s.rays),
+                timed(s.cpu_f32, s.rays),
+                timed(s.cpu_f64, s.rays)
             );
         }
         out

@@ -1,7 +1,8 @@
 //! Each scene's specialised shader against the generic one (`glint bench
 //! specialize`): SPIR-V size, uncached pipeline build time and render time.
-//! It drives `GpuRenderer` directly, since uncached builds of chosen
-//! feature sets are what it measures.
+//! It gets its device from a `render::Renderer` and drives that renderer's
+//! `GpuRenderer` directly, since uncached builds of chosen feature sets are
+//! what it measures.
 
 use std::fmt::Write as _;
 use std::path::PathBuf;
@@ -10,12 +11,11 @@ use std::time::{Duration, Instant};
 use super::{default_scenes, scene_files, Stat};
 use crate::bvh::Bvh;
 use crate::camera::Camera;
-use crate::gpu::{
-    Context, ContextOptions, DeviceSelector, GpuError, GpuRenderOptions, GpuRenderer, Kernel,
-};
+use crate::gpu::{DeviceSelector, GpuError, GpuRenderOptions, Kernel};
 use crate::info::Features;
 use crate::layout::GpuScene;
 use crate::methods::Methods;
+use crate::render::{Backend, RenderOptions, Renderer};
 use crate::scene::{read_scene, Effects};
 use crate::Error;
 
@@ -43,21 +43,23 @@ pub fn run_specialize(
     progress: &mut dyn FnMut(&str),
 ) -> Result<String, Error> {
     use crate::gpu::shader;
-    let ctx = Context::new(&ContextOptions {
+    let device = Renderer::new(&RenderOptions {
+        backend: Backend::Gpu,
         device: options.device.clone(),
-        validation: false,
+        ..RenderOptions::default()
     })?;
-    let renderer = GpuRenderer::new(&ctx)?;
+    let renderer = device
+        .gpu()
+        .ok_or_else(|| Error::InvalidOption("no GPU for the specialisation benchmark".into()))?;
     let camera = Camera::new(options.width, options.height);
     let ms = |d: Duration| d.as_secs_f64() * 1e3;
     let mut out = String::new();
     let _ = writeln!(
         out,
-        "Device: {} ({}). {}x{}; build: median of 3 uncached pipeline builds \
+        "{}. {}x{}; build: median of 3 uncached pipeline builds \
          (naga specialisation + SPIR-V + driver compile); render: median of {} \
          renders, specialised and generic interleaved, after one warm-up each.\n",
-        ctx.info().name,
-        ctx.info().driver,
+        device.name(),
         options.width,
         options.height,
         options.repeat

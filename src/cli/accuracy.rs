@@ -14,6 +14,7 @@ use glint::methods::Methods;
 use glint::progressive::StopAt;
 use glint::render::{Backend, RenderOptions, Renderer};
 use glint::scene::Scene;
+use glint::timing::GPU_TIME_NS;
 
 use super::EffectArgs;
 
@@ -21,7 +22,7 @@ use super::EffectArgs;
 pub struct AccuracyArgs {
     /// Scene file in the classic format.
     scene: PathBuf,
-    /// Directory for accuracy.csv, accuracy.md, accuracy.svg and the cached
+    /// Directory for accuracy.csv, accuracy.md, accuracy.svg, accuracy.png and the cached
     /// reference.
     #[arg(long, default_value = "accuracy")]
     out: PathBuf,
@@ -73,9 +74,9 @@ const REFERENCE_RMSE: f64 = 0.0005;
 
 pub fn run(args: AccuracyArgs) -> anyhow::Result<ExitCode> {
     let start = Instant::now();
-    let bytes = std::fs::read(&args.scene).map_err(|source| glint::Error::ReadScene {
+    let bytes = std::fs::read(&args.scene).map_err(|error| glint::Error::ReadScene {
         path: args.scene.clone(),
-        source,
+        error,
     })?;
     let scene = glint::scene::read_scene(&args.scene)?;
     super::print_warnings(&scene);
@@ -142,6 +143,8 @@ pub fn run(args: AccuracyArgs) -> anyhow::Result<ExitCode> {
     let points = accuracy::plan(&scene, &effects, &targets);
     let budget = args.budget.map(Duration::from_secs_f64);
     let mut rows: Vec<Measured> = Vec::new();
+    // Whether every GPU point was timed by the device (None: no GPU point).
+    let mut dispatch_clock: Option<bool> = None;
     let mut left_out = 0;
     for (i, point) in points.iter().enumerate() {
         if budget.is_some_and(|b| start.elapsed() > b) {
@@ -184,17 +187,27 @@ pub fn run(args: AccuracyArgs) -> anyhow::Result<ExitCode> {
         }
         let mut times = Vec::new();
         let mut dispatches = Vec::new();
+        let mut by_device = true;
         let mut image: Option<Framebuffer> = None;
         for _ in 0..args.repeat {
             let t = Instant::now();
             let out = renderer.render(&at, &|_, _| {})?;
             times.push(t.elapsed());
-            if let Some(d) = out.timings.phases.iter().find(|p| p.0 == "dispatch") {
+            // The device's own clock where it has timestamps, else the
+            // host's around the passes.
+            let t = &out.timings;
+            if t.has_count(GPU_TIME_NS) {
+                dispatches.push(Duration::from_nanos(t.counted(GPU_TIME_NS)));
+            } else if let Some(d) = t.phases.iter().find(|p| p.0 == "dispatch") {
                 dispatches.push(d.1);
+                by_device = false;
             }
             image = Some(out.framebuffer);
         }
         let image = image.expect("at least one render");
+        if !dispatches.is_empty() {
+            dispatch_clock = Some(dispatch_clock.unwrap_or(true) && by_device);
+        }
         let m = Measured {
             point: point.clone(),
             time: accuracy::median(times),
@@ -217,8 +230,12 @@ pub fn run(args: AccuracyArgs) -> anyhow::Result<ExitCode> {
         rows.push(m);
     }
 
+    let clock = match dispatch_clock {
+        Some(true) => "Vulkan timestamps around each dispatch",
+        _ => "host clock around each pass",
+    };
     let mut header = format!(
-        "Scene `{}` at {}x{}; {about_reference}; {}; time = median of {} renders (BVH, upload, dispatch, readback), dispatch = the GPU's dispatches alone (host clock).",
+        "Scene `{}` at {}x{}; {about_reference}; {}; time = median of {} renders (BVH, upload, dispatch, readback), dispatch = the GPU's dispatches alone ({clock}).",
         args.scene.display(),
         args.width,
         args.height,
@@ -248,6 +265,11 @@ pub fn run(args: AccuracyArgs) -> anyhow::Result<ExitCode> {
             .map_or("scene".into(), |n| n.to_string_lossy())
     );
     write("accuracy.svg", accuracy::svg(&rows, &title))?;
+    glint::framebuffer::write_image(
+        &accuracy::png_image(&rows, &title),
+        &args.out.join("accuracy.png"),
+        95,
+    )?;
     for backend in ["gpu", "cpu"] {
         if !rows.iter().any(|m| m.point.target.backend() == backend) {
             continue;
@@ -270,7 +292,7 @@ pub fn run(args: AccuracyArgs) -> anyhow::Result<ExitCode> {
         }
     }
     println!(
-        "wrote {}/accuracy.csv, accuracy.md, accuracy.svg ({} points, {:.1} s)",
+        "wrote {}/accuracy.csv, accuracy.md, accuracy.svg, accuracy.png ({} points, {:.1} s)",
         args.out.display(),
         rows.len(),
         start.elapsed().as_secs_f64()

@@ -7,11 +7,12 @@ use glint::framebuffer::{read_framebuffer, read_image, write_image, ImageFile};
 
 #[derive(Args, Debug)]
 pub struct CompareArgs {
-    /// Reference image (.png, .jpg or float .exr).
+    /// Reference image (.png, .jpg, .ppm or float .exr).
     a: PathBuf,
     /// Image to check against it.
     b: PathBuf,
-    /// Write a difference image here (.png recommended).
+    /// Write a difference image here (.png recommended): the reference
+    /// faded to grey, differences as a heat map, lone bad pixels ringed.
     #[arg(long)]
     diff: Option<PathBuf>,
     /// Per-channel difference (0-255 levels) above which a pixel counts as differing.
@@ -35,8 +36,19 @@ pub fn run(args: CompareArgs) -> anyhow::Result<ExitCode> {
     };
     println!("{cmp}");
     if let Some(path) = &args.diff {
-        write_image(&cmp.diff_image(), path, 95)?;
-        println!("wrote {}", path.display());
+        write_image(&cmp.diff_image(&read_image(&args.a)?), path, 95)?;
+        println!(
+            "wrote {}: {} faded to grey, differing pixels coloured dark purple (smallest) to pale \
+             yellow ({:.3} levels){}",
+            path.display(),
+            args.a.display(),
+            cmp.diff_scale(),
+            if cmp.over_threshold > 0 {
+                ", each pixel over the threshold ringed when they are few"
+            } else {
+                ""
+            }
+        );
     }
     if args.fail && cmp.over_threshold > 0 {
         return Ok(ExitCode::from(1));

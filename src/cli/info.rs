@@ -11,7 +11,7 @@ use glint::scene::Effects;
 use super::{print_warnings, EffectArgs};
 
 pub fn run(path: &Path, effects: &EffectArgs, size: [u32; 2]) -> anyhow::Result<ExitCode> {
-    let scene = glint::scene::read_scene(path)?;
+    let scene = super::read_scene(path)?;
     print_warnings(&scene);
     let bvh = Bvh::build(&scene);
     let effects = Effects::resolve(&effects.settings().or(scene.settings));

@@ -6,6 +6,7 @@ mod compare;
 mod devices;
 mod info;
 mod render;
+mod stitch;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -22,6 +23,10 @@ use glint::scene::{Effects, Settings};
 pub struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// Threads for the CPU reference and for lavapipe (sets LP_NUM_THREADS
+    /// unless it is set); default: RAYON_NUM_THREADS, else every core.
+    #[arg(long, global = true, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=4096))]
+    threads: Option<u32>,
 }
 
 #[derive(Subcommand, Debug)]
@@ -35,11 +40,15 @@ enum Command {
     /// What accuracy costs in time: every knob the scene calls for swept,
     /// each point timed and measured against a reference.
     Accuracy(accuracy::AccuracyArgs),
+    /// Join the parts of an image rendered with `render --crop` (.png or
+    /// .exr, alpha marking each part's pixels) into OUT, bit for bit the
+    /// image one render would have made.
+    Stitch(stitch::StitchArgs),
     /// List the Vulkan devices found.
     Devices,
     /// Show what a scene holds, what it calls for and the shader it gets.
     Info {
-        /// Scene file in the classic format.
+        /// Scene file in the classic format; `-` reads standard input.
         scene: PathBuf,
         #[command(flatten)]
         effects: EffectArgs,
@@ -132,17 +141,21 @@ impl Cli {
             Command::Render(_) => Some("or render on the CPU reference: `--backend cpu`"),
             Command::Accuracy(_) => Some("or sweep the CPU reference alone: `--backend cpu`"),
             Command::Bench(b) => Some(b.no_device_hint()),
-            Command::Devices | Command::Compare(_) | Command::Info { .. } => None,
+            Command::Devices | Command::Compare(_) | Command::Stitch(_) | Command::Info { .. } => {
+                None
+            }
         }
     }
 }
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
+    set_threads(cli.threads)?;
     match cli.command {
         Command::Render(args) => render::run(args),
         Command::Compare(args) => compare::run(args),
         Command::Bench(args) => bench::run(args),
         Command::Accuracy(args) => accuracy::run(args),
+        Command::Stitch(args) => stitch::run(args),
         Command::Devices => devices::run(),
         Command::Info {
             scene,
@@ -151,6 +164,49 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
             height,
         } => info::run(&scene, &effects, [width, height]),
     }
+}
+
+/// `--threads N`, else `RAYON_NUM_THREADS`: the CPU reference's thread
+/// pool, and lavapipe's (`LP_NUM_THREADS`, read when its device is
+/// created) unless that is set already.
+fn set_threads(threads: Option<u32>) -> anyhow::Result<()> {
+    let from_env = || {
+        std::env::var("RAYON_NUM_THREADS")
+            .ok()?
+            .trim()
+            .parse::<u32>()
+            .ok()
+            .filter(|&n| n > 0)
+    };
+    let Some(n) = threads.or_else(from_env) else {
+        return Ok(());
+    };
+    rayon::ThreadPoolBuilder::new()
+        .num_threads(n as usize)
+        .build_global()
+        .map_err(|e| anyhow::anyhow!("setting up {n} threads: {e}"))?;
+    if std::env::var_os("LP_NUM_THREADS").is_none() {
+        // Before any Vulkan instance exists; the only other thread (the
+        // signal handler's) reads no environment.
+        std::env::set_var("LP_NUM_THREADS", n.to_string());
+    }
+    Ok(())
+}
+
+/// Reads a scene file, or standard input for `-` (named `<stdin>` in
+/// messages).
+pub fn read_scene(path: &std::path::Path) -> Result<glint::scene::Scene, glint::Error> {
+    if path != std::path::Path::new("-") {
+        return glint::scene::read_scene(path);
+    }
+    let mut bytes = Vec::new();
+    std::io::Read::read_to_end(&mut std::io::stdin().lock(), &mut bytes).map_err(|error| {
+        glint::Error::ReadScene {
+            path: "<stdin>".into(),
+            error,
+        }
+    })?;
+    Ok(glint::scene::parse_scene(&bytes, "<stdin>")?)
 }
 
 /// Prints the scene's warnings (with their source lines) to stderr.

@@ -9,18 +9,69 @@ use glint::framebuffer::{check_output, write_framebuffer, DEFAULT_JPEG_QUALITY};
 use glint::gpu::DeviceSelector;
 use glint::methods::Methods;
 use glint::progressive::{PassReport, StopAt, Stopped};
-use glint::render::{pixel_path, render, Backend, RenderOptions, Renderer};
+use glint::render::{pixel_path, Backend, RenderOptions, Renderer};
 use glint::scene::Scene;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use super::{print_warnings, BackendArg, EffectArgs, MethodsArg, PrecisionArg};
+use glint::framebuffer::ImageFile;
+use glint::region::Crop;
+
+use super::{print_warnings, read_scene, BackendArg, EffectArgs, MethodsArg, PrecisionArg};
+
+/// Where a render's messages go: stdout, unless the image goes there.
+#[derive(Clone, Copy)]
+struct Say {
+    to_stderr: bool,
+}
+
+impl Say {
+    fn line(self, s: impl std::fmt::Display) {
+        if self.to_stderr {
+            eprintln!("{s}");
+        } else {
+            println!("{s}");
+        }
+    }
+}
+
+/// Where the image goes.
+enum Out {
+    File(PathBuf),
+    /// `-`: PNG on standard output.
+    Stdout,
+}
+
+impl Out {
+    fn path(&self) -> &Path {
+        match self {
+            Out::File(p) => p,
+            Out::Stdout => Path::new("standard output"),
+        }
+    }
+
+    fn write(
+        &self,
+        fb: &glint::framebuffer::Framebuffer,
+        crop: Option<&Crop>,
+        quality: u8,
+    ) -> Result<(), glint::Error> {
+        match (self, crop) {
+            (Out::File(p), None) => write_framebuffer(fb, p, quality),
+            (Out::File(p), Some(c)) => glint::region::write_part(fb, c, p),
+            (Out::Stdout, None) => {
+                glint::framebuffer::write_framebuffer_to_stdout(fb, ImageFile::Png, quality)
+            }
+            (Out::Stdout, Some(c)) => glint::region::write_part_to_stdout(fb, c),
+        }
+    }
+}
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
-    /// Scene file in the classic format.
+    /// Scene file in the classic format; `-` reads it from standard input.
     scene: PathBuf,
-    /// Output image (.jpg, .jpeg, .png, or .exr for float values); default:
-    /// <scene stem>.jpg here.
+    /// Output image (.jpg, .jpeg, .png, .ppm, or .exr for float values);
+    /// `-` writes PNG to standard output; default: <scene stem>.jpg here.
     out: Option<PathBuf>,
     /// Output image, as an option.
     #[arg(short, long, conflicts_with = "out")]
@@ -106,6 +157,34 @@ pub struct RenderArgs {
     /// the target.
     #[arg(long, requires = "target_error")]
     adaptive: bool,
+    /// Render only the pixels X0..X1-1 by Y0..Y1-1 (pbrt's --pixelbounds);
+    /// the output is a full-size .png or .exr whose alpha marks them, for
+    /// `glint stitch` to join with the other parts, bit for bit.
+    #[arg(long, value_name = "X0,Y0,X1,Y1", value_parser = Crop::parse, conflicts_with_all = ["pixel", "frames", "target_error", "time_limit"])]
+    crop: Option<Crop>,
+    /// Preview: 1 sample per pixel, 1 shadow sample, no reflection, half
+    /// the width and height; flags given beside it win.
+    #[arg(long)]
+    quick: bool,
+    /// After the render: rays cast by kind and per second, samples, the
+    /// BVH, time per phase, peak memory (also with -v).
+    #[arg(long)]
+    stats: bool,
+}
+
+impl RenderArgs {
+    /// `--quick` applied: the preview's settings where no flag sets them.
+    fn resolved(mut self) -> RenderArgs {
+        if self.quick {
+            self.width = self.width.div_ceil(2);
+            self.height = self.height.div_ceil(2);
+            let e = &mut self.effects;
+            e.spp = e.spp.or(Some(1));
+            e.shadow_samples = e.shadow_samples.or(Some(1));
+            e.reflect = e.reflect.or(Some(0));
+        }
+        self
+    }
 }
 
 fn parse_error_target(s: &str) -> Result<f64, String> {
@@ -121,6 +200,8 @@ fn parse_error_target(s: &str) -> Result<f64, String> {
 enum FrameFormat {
     Jpg,
     Png,
+    Ppm,
+    Exr,
 }
 
 fn parse_range(s: &str) -> Result<[u32; 2], String> {
@@ -170,21 +251,61 @@ fn parse_rgb(s: &str) -> Result<[f32; 3], String> {
     }
 }
 
+/// `<scene stem>.jpg`, or `stdin.jpg` for a scene read from standard input.
 fn default_output(scene: &Path) -> PathBuf {
+    if scene == Path::new("-") {
+        return PathBuf::from("stdin.jpg");
+    }
     let stem = scene.file_stem().unwrap_or(scene.as_os_str());
     PathBuf::from(stem).with_extension("jpg")
 }
 
 pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
+    let args = args.resolved();
     let (out, defaulted) = match args.out.clone().or(args.output.clone()) {
         Some(p) => (p, false),
         None => (default_output(&args.scene), true),
     };
+    let out = if out == Path::new("-") {
+        Out::Stdout
+    } else {
+        Out::File(out)
+    };
+    let say = Say {
+        to_stderr: matches!(out, Out::Stdout),
+    };
     // Everything the arguments alone decide is checked before any work.
-    if let Some(frames) = args.frames {
-        check_frames(&args, frames, &out, defaulted)?;
-    } else if args.pixel.is_none() {
-        check_output(&out)?;
+    match (&out, args.frames) {
+        (Out::File(dir), Some(frames)) => check_frames(&args, frames, dir, defaulted)?,
+        (Out::Stdout, Some(_)) => {
+            return Err(glint::Error::InvalidOption(
+                "--frames writes a directory of images; `-` (standard output) holds one image"
+                    .into(),
+            )
+            .into())
+        }
+        (Out::Stdout, None) => {
+            use std::io::IsTerminal;
+            if args.pixel.is_none() && std::io::stdout().is_terminal() {
+                return Err(glint::Error::InvalidOption(
+                    "`-` writes a PNG to standard output, which is a terminal here; \
+                     redirect it (`> out.png`) or pipe it to a program"
+                        .into(),
+                )
+                .into());
+            }
+        }
+        (Out::File(path), None) if args.pixel.is_none() => match &args.crop {
+            Some(_) => {
+                glint::region::check_part_format(path)?;
+                check_output(path)?;
+            }
+            None => check_output(path)?,
+        },
+        _ => {}
+    }
+    if let Some(crop) = &args.crop {
+        crop.check(args.width, args.height)?;
     }
     if let Some([x, y]) = args.pixel {
         if x >= args.width || y >= args.height {
@@ -196,7 +317,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         }
     }
     let parse_start = Instant::now();
-    let scene = glint::scene::read_scene(&args.scene)?;
+    let scene = read_scene(&args.scene)?;
     let parse_time = parse_start.elapsed();
     print_warnings(&scene);
 
@@ -230,10 +351,17 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
     };
     if let Some(frames) = args.frames {
         let dir = if defaulted {
-            let stem = args.scene.file_stem().unwrap_or(args.scene.as_os_str());
-            PathBuf::from(format!("{}_frames", stem.to_string_lossy()))
+            let stem = match args.scene.to_str() {
+                Some("-") => "stdin".into(),
+                _ => args
+                    .scene
+                    .file_stem()
+                    .unwrap_or(args.scene.as_os_str())
+                    .to_string_lossy(),
+            };
+            PathBuf::from(format!("{stem}_frames"))
         } else {
-            out
+            out.path().to_path_buf()
         };
         return animate(&scene, &options, &args, frames, &dir);
     }
@@ -270,14 +398,16 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
     }
 
     if args.target_error.is_some() || args.time_limit.is_some() {
-        return render_progressive(&scene, &options, &args, &out, defaulted, parse_time);
+        return render_progressive(&scene, &options, &args, &out, defaulted, parse_time, say);
     }
 
     let bar = ProgressBar::new(0);
     bar.set_style(
-        ProgressStyle::with_template("{spinner} rendering [{bar:30}] {pos}/{len} {elapsed}")
-            .expect("valid template")
-            .progress_chars("=> "),
+        ProgressStyle::with_template(
+            "{spinner} rendering [{bar:30}] {percent:>3}% {elapsed} (eta {eta})",
+        )
+        .expect("valid template")
+        .progress_chars("=> "),
     );
     // Short renders finish before the bar would be useful; only show it later.
     let started = Instant::now();
@@ -287,7 +417,10 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
             bar.set_position(done);
         }
     };
-    let result = render(&scene, &options, &progress);
+    let result = Renderer::new(&options).and_then(|r| match &args.crop {
+        Some(crop) => r.render_crop(&scene, *crop, &progress),
+        None => r.render(&scene, &progress),
+    });
     bar.finish_and_clear();
     let output = result?;
     if let Some(note) = &output.note {
@@ -295,30 +428,98 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
     }
     validation_verdict(output.validation_messages)?;
     let write_start = Instant::now();
-    write_framebuffer(&output.framebuffer, &out, args.quality)
+    out.write(&output.framebuffer, args.crop.as_ref(), args.quality)
         .with_context(|| format!("rendering {}", args.scene.display()))?;
     let write_time = write_start.elapsed();
-    let mut timings = output.timings;
+    let mut timings = output.timings.clone();
     timings.phases.insert(0, ("parse", parse_time));
     timings.add("write", write_time);
-    println!(
-        "wrote {}{} ({}x{}, {}, {:.1} ms)",
-        out.display(),
+    let what = match &args.crop {
+        Some(c) => format!(
+            "pixels {c} of {}x{}, a part for `glint stitch`",
+            args.width, args.height
+        ),
+        None => format!("{}x{}", args.width, args.height),
+    };
+    say.line(format!(
+        "wrote {}{} ({what}, {}, {:.1} ms)",
+        out.path().display(),
         if defaulted {
             " (default name: <scene>.jpg)"
         } else {
             ""
         },
-        args.width,
-        args.height,
         output.renderer,
         timings.total().as_secs_f64() * 1e3
-    );
+    ));
     if args.verbose {
-        println!("timings:\n{timings}");
-        println!("memory:\n  {} beyond the scene and its BVH", output.memory);
+        say.line(format!("timings:\n{timings}"));
+        say.line(format!(
+            "memory:\n  {} beyond the scene and its BVH",
+            output.memory
+        ));
+    }
+    if args.stats || args.verbose {
+        say.line(stats(&output, &timings));
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// The end-of-render summary (`--stats`, `-v`).
+fn stats(output: &glint::render::RenderOutput, timings: &glint::timing::Timings) -> String {
+    use glint::timing::{CLOSEST_RAYS, SHADOW_RAYS};
+    let mut s = String::from("stats:");
+    let rendering = timings
+        .phases
+        .iter()
+        .filter(|(n, _)| matches!(*n, "dispatch" | "readback" | "cpu render"))
+        .map(|p| p.1)
+        .sum::<Duration>();
+    if timings.has_count(CLOSEST_RAYS) {
+        let closest = timings.counted(CLOSEST_RAYS);
+        let shadow = timings.counted(SHADOW_RAYS);
+        // Every sample casts one primary ray; the other closest-hit rays
+        // are reflections.
+        let primary = output.samples.min(closest);
+        let all = closest + shadow;
+        let rate = all as f64 / rendering.as_secs_f64().max(1e-9);
+        s.push_str(&format!(
+            "\n  rays        {all} in all: {primary} primary, {} reflected, {shadow} shadow; \
+             {:.2} M rays/s over {:.3} s of rendering",
+            closest - primary,
+            rate / 1e6,
+            rendering.as_secs_f64()
+        ));
+    } else {
+        s.push_str(
+            "\n  rays        not counted: one pass could cast more than the shader's 32-bit \
+             counters hold (lower --pass-budget or --tile to count them)",
+        );
+    }
+    if timings.has_count(glint::timing::GPU_TIME_NS) {
+        s.push_str(&format!(
+            "\n  gpu time    {:.3} ms in the dispatches (Vulkan timestamps)",
+            timings.counted(glint::timing::GPU_TIME_NS) as f64 / 1e6
+        ));
+    }
+    s.push_str(&format!("\n  samples     {}", output.samples));
+    s.push_str(&format!("\n  bvh         {}", output.bvh));
+    for (name, d) in &timings.phases {
+        s.push_str(&format!("\n  {name:<11} {:.3} ms", d.as_secs_f64() * 1e3));
+    }
+    s.push_str(&format!(
+        "\n  {:<11} {:.3} ms",
+        "total",
+        timings.total().as_secs_f64() * 1e3
+    ));
+    match glint::memory::peak_resident() {
+        Some(b) => s.push_str(&format!(
+            "\n  peak memory {} resident",
+            glint::memory::human(b)
+        )),
+        None => s.push_str("\n  peak memory unknown on this system"),
+    }
+    s
 }
 
 /// `--frames`: the range fits and OUT can be the frames' directory.
@@ -343,9 +544,7 @@ fn check_frames(args: &RenderArgs, frames: u32, out: &Path, defaulted: bool) -> 
         }
         .into()
     };
-    if out.extension().is_some_and(|e| {
-        ["jpg", "jpeg", "png", "exr"].contains(&e.to_string_lossy().to_ascii_lowercase().as_str())
-    }) {
+    if glint::framebuffer::ImageFile::of(out).is_ok() {
         return Err(bad(
             "with --frames, the output is a directory for 000.jpg, 001.jpg, ...; this is an image name".into(),
         ));
@@ -364,9 +563,10 @@ fn render_progressive(
     scene: &Scene,
     options: &RenderOptions,
     args: &RenderArgs,
-    out: &Path,
+    out: &Out,
     defaulted: bool,
     parse_time: Duration,
+    say: Say,
 ) -> anyhow::Result<ExitCode> {
     let stop = StopAt {
         target_rmse: args.target_error,
@@ -406,7 +606,7 @@ fn render_progressive(
     bar.finish_and_clear();
     let done = result?;
     validation_verdict(done.output.validation_messages)?;
-    write_framebuffer(&done.output.framebuffer, out, args.quality)
+    out.write(&done.output.framebuffer, None, args.quality)
         .with_context(|| format!("rendering {}", args.scene.display()))?;
     let r = done.report;
     let estimate = r
@@ -420,9 +620,9 @@ fn render_progressive(
     } else {
         format!("{} samples per pixel", r.samples_per_pixel)
     };
-    println!(
+    say.line(format!(
         "wrote {}{} ({}x{}, {}, {} passes, {samples}, estimated RMSE {estimate}, {:.2} s)",
-        out.display(),
+        out.path().display(),
         if defaulted {
             " (default name: <scene>.jpg)"
         } else {
@@ -433,9 +633,12 @@ fn render_progressive(
         done.output.renderer,
         r.passes,
         (r.elapsed + parse_time).as_secs_f64()
-    );
+    ));
     if args.verbose {
-        println!("timings (all passes):\n{}", done.output.timings);
+        say.line(format!("timings (all passes):\n{}", done.output.timings));
+    }
+    if args.stats || args.verbose {
+        say.line(stats(&done.output, &done.output.timings));
     }
     let reached = match (args.target_error, r.estimated_rmse) {
         (Some(t), Some(e)) => e <= t,
@@ -443,15 +646,15 @@ fn render_progressive(
         (None, _) => true,
     };
     match done.stopped {
-        Stopped::Target => println!("stopped: the estimate reached the target"),
-        Stopped::Noiseless => println!(
+        Stopped::Target => say.line("stopped: the estimate reached the target"),
+        Stopped::Noiseless => say.line(
             "stopped: two passes came out identical (nothing in the scene is random), so the image is converged"
         ),
-        Stopped::TimeLimit if reached => println!("stopped: the time limit"),
-        Stopped::TimeLimit => println!(
+        Stopped::TimeLimit if reached => say.line("stopped: the time limit"),
+        Stopped::TimeLimit => say.line(format!(
             "stopped: the time limit, before the target {} was reached",
             args.target_error.unwrap_or_default()
-        ),
+        )),
         Stopped::MaxSamples => {
             if !reached {
                 eprintln!(
@@ -462,19 +665,22 @@ fn render_progressive(
                 );
                 return Ok(ExitCode::from(1));
             }
-            println!("stopped: the cap of {} samples per pixel", glint::scene::Effects::MAX_SPP);
+            say.line(format!("stopped: the cap of {} samples per pixel", glint::scene::Effects::MAX_SPP));
         }
     }
     if out_is_8_bit(out) && r.estimated_rmse.is_some_and(|e| e < 0.002) {
-        println!(
+        say.line(
             "note: 8-bit output adds about 0.0011 RMSE of rounding; write .exr to keep the float image"
         );
     }
     Ok(ExitCode::SUCCESS)
 }
 
-fn out_is_8_bit(out: &Path) -> bool {
-    glint::framebuffer::ImageFile::of(out).is_ok_and(|f| !f.is_float())
+fn out_is_8_bit(out: &Out) -> bool {
+    match out {
+        Out::File(p) => ImageFile::of(p).is_ok_and(|f| !f.is_float()),
+        Out::Stdout => true,
+    }
 }
 
 /// A render the validation layer complained about may be wrong: an error
@@ -516,6 +722,8 @@ fn animate(
     let ext = match args.frame_format {
         FrameFormat::Jpg => "jpg",
         FrameFormat::Png => "png",
+        FrameFormat::Ppm => "ppm",
+        FrameFormat::Exr => "exr",
     };
     let bar = ProgressBar::new(u64::from(last - first + 1));
     bar.set_style(

@@ -60,19 +60,21 @@ pub fn render(
     options: &CpuOptions,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Framebuffer {
-    render_pixels(scene, bvh, camera, options, &|_, _| true, progress)
+    render_pixels(scene, bvh, camera, options, &|_, _| true, progress).0
 }
 
 /// As `render`, only the pixels `keep` says (the others are 0): the CPU
-/// twin of the GPU's `render_rects`.
+/// twin of the GPU's `render_rects`. Also returns the closest-hit and
+/// shadow rays cast.
 pub fn render_where(
     scene: &Scene,
     bvh: &Bvh,
     camera: &Camera,
     options: &CpuOptions,
     keep: &(dyn Fn(u32, u32) -> bool + Sync),
-) -> Framebuffer {
-    render_pixels(scene, bvh, camera, options, keep, &|_, _| {})
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> (Framebuffer, [u64; 2]) {
+    render_pixels(scene, bvh, camera, options, keep, progress)
 }
 
 fn render_pixels(
@@ -82,12 +84,12 @@ fn render_pixels(
     options: &CpuOptions,
     keep: &(dyn Fn(u32, u32) -> bool + Sync),
     progress: &(dyn Fn(u64, u64) + Sync),
-) -> Framebuffer {
+) -> (Framebuffer, [u64; 2]) {
     fn colour<R: Real>(s: &CpuScene<R>, x: u32, y: u32) -> [f32; 3] {
         R::v3_to_f32(R::clamp01(pixel_color(s, x, y)))
     }
     let pixel = |x: u32, y: u32, f: &dyn Fn() -> [f32; 3]| if keep(x, y) { f() } else { [0.0; 3] };
-    let pixels = match options.precision {
+    let (pixels, rays) = match options.precision {
         Precision::F32 => {
             let s = CpuScene::<f32>::new(scene, bvh, camera, options);
             per_pixel(&s, progress, |s, x, y| pixel(x, y, &|| colour(s, x, y)))
@@ -97,11 +99,12 @@ fn render_pixels(
             per_pixel(&s, progress, |s, x, y| pixel(x, y, &|| colour(s, x, y)))
         }
     };
-    Framebuffer {
+    let fb = Framebuffer {
         width: camera.width,
         height: camera.height,
         pixels,
-    }
+    };
+    (fb, rays)
 }
 
 /// Each pixel's primary hit and shadow verdicts, as the shader's `probe_tile`.
@@ -120,7 +123,7 @@ pub fn probe(scene: &Scene, bvh: &Bvh, camera: &Camera, options: &CpuOptions) ->
         background: [0.0; 3],
         ..*options
     };
-    let pixels = match options.precision {
+    let (pixels, _) = match options.precision {
         Precision::F32 => per_pixel(
             &CpuScene::<f32>::new(scene, bvh, camera, &options),
             none,
@@ -199,23 +202,92 @@ fn path_in<R: Real>(scene: &CpuScene<R>, [x, y]: [u32; 2]) -> PathRecord {
     record
 }
 
-/// `f(scene, x, y)` for every pixel, rows in parallel.
+/// `f(scene, x, y)` for every pixel, rows in parallel, taken in
+/// `spread_order` so that `progress(rows_done, rows)` advances at an even
+/// pace: rows in order would finish the cheap sky first and the costly
+/// floor last, and an ETA from them would be wrong by the ratio. Also
+/// returns the closest-hit and shadow rays `f` cast.
 fn per_pixel<R: Real, T: Send + Default + Clone>(
     scene: &CpuScene<R>,
     progress: &(dyn Fn(u64, u64) + Sync),
     f: impl Fn(&CpuScene<R>, u32, u32) -> T + Sync,
-) -> Vec<T> {
+) -> (Vec<T>, [u64; 2]) {
+    use std::sync::atomic::{AtomicU64, Ordering};
     let [w, h] = scene.size;
-    let done = std::sync::atomic::AtomicU64::new(0);
+    let done = AtomicU64::new(0);
+    let rays = [AtomicU64::new(0), AtomicU64::new(0)];
     let mut out = vec![T::default(); w as usize * h as usize];
-    out.par_chunks_mut(w as usize)
-        .enumerate()
-        .for_each(|(y, row)| {
-            for (x, px) in row.iter_mut().enumerate() {
-                *px = f(scene, x as u32, y as u32);
+    let mut rows: Vec<Option<&mut [T]>> = out.chunks_mut(w as usize).map(Some).collect();
+    let ordered: Vec<(u32, &mut [T])> = spread_order(h)
+        .into_iter()
+        .filter_map(|y| Some((y, rows[y as usize].take()?)))
+        .collect();
+    ordered.into_par_iter().for_each(|(y, row)| {
+        // A row runs on one thread from start to end, so the thread's
+        // counters moved by this row's rays alone.
+        let before = trace::rays_cast();
+        for (x, px) in row.iter_mut().enumerate() {
+            *px = f(scene, x as u32, y);
+        }
+        let after = trace::rays_cast();
+        for k in 0..2 {
+            rays[k].fetch_add(after[k] - before[k], Ordering::Relaxed);
+        }
+        let n = done.fetch_add(1, Ordering::Relaxed) + 1;
+        progress(n, u64::from(h));
+    });
+    (out, rays.map(AtomicU64::into_inner))
+}
+
+/// The rows 0..n in an order whose every stretch is spread over the whole
+/// image: row (i * s) mod n, with the stride s near n / golden ratio and
+/// coprime to n (so each row comes once).
+pub fn spread_order(n: u32) -> Vec<u32> {
+    if n < 3 {
+        return (0..n).collect();
+    }
+    let gcd = |mut a: u64, mut b: u64| {
+        while b != 0 {
+            (a, b) = (b, a % b);
+        }
+        a
+    };
+    let mut stride = ((f64::from(n) * 0.618_033_988_75) as u64).max(1);
+    while gcd(stride, u64::from(n)) != 1 {
+        stride += 1;
+    }
+    (0..u64::from(n))
+        .map(|i| ((i * stride) % u64::from(n)) as u32)
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::spread_order;
+
+    /// Each row once, and any stretch of the order is spread evenly: the
+    /// first eighth of the work touches every eighth of the image.
+    #[test]
+    fn spread_order_is_a_permutation_spread_over_the_image() {
+        for n in [0, 1, 2, 3, 7, 30, 240, 480, 1000, 1024, 16384] {
+            let order = spread_order(n);
+            let mut seen = order.clone();
+            seen.sort_unstable();
+            assert_eq!(seen, (0..n).collect::<Vec<_>>(), "n = {n}");
+            if n >= 64 {
+                let eighth = (n / 8) as usize;
+                for start in [0, eighth, 3 * eighth] {
+                    let mut bands = [0u32; 8];
+                    for &y in &order[start..start + eighth] {
+                        bands[(y * 8 / n) as usize] += 1;
+                    }
+                    let (lo, hi) = (bands.iter().min().unwrap(), bands.iter().max().unwrap());
+                    assert!(
+                        *lo > 0 && hi - lo <= eighth as u32 / 4 + 2,
+                        "n = {n}: {bands:?}"
+                    );
+                }
             }
-            let n = done.fetch_add(1, std::sync::atomic::Ordering::Relaxed) + 1;
-            progress(n, u64::from(h));
-        });
-    out
+        }
+    }
 }

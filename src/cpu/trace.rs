@@ -183,6 +183,27 @@ pub struct Hit<R: Real> {
     pub b2: R,
 }
 
+thread_local! {
+    /// Closest-hit and shadow rays this thread has cast (`rays_cast`), as
+    /// the shader's status counts them; a thread-local, so counting costs
+    /// no shared cache line.
+    static RAYS: std::cell::Cell<[u64; 2]> = const { std::cell::Cell::new([0; 2]) };
+}
+
+fn count_ray(kind: usize) {
+    RAYS.with(|r| {
+        let mut v = r.get();
+        v[kind] += 1;
+        r.set(v);
+    });
+}
+
+/// Closest-hit and shadow rays cast on this thread so far; the difference
+/// of two readings around some work is what that work cast.
+pub fn rays_cast() -> [u64; 2] {
+    RAYS.with(std::cell::Cell::get)
+}
+
 pub fn make_ray<R: Real>(origin: R::V3, dir: R::V3, time: R) -> Ray<R> {
     let safe = |d: R| {
         if d.abs() < R::MIN_DIR {
@@ -541,12 +562,14 @@ pub fn traverse<R: Real>(
 }
 
 pub fn trace_closest<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>) -> Hit<R> {
+    count_ray(0);
     traverse(scene, ray, R::T_INF, false, &[], R::ZERO)
 }
 
 /// `skip`, `graze`: the surfaces through the light and the grazing band's
 /// height (`lights_on_surfaces`; empty and 0 for other lights).
 pub fn occluder<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>, skip: &[u32], graze: R) -> Hit<R> {
+    count_ray(1);
     traverse(scene, ray, R::ONE, true, skip, graze)
 }
 

@@ -79,7 +79,7 @@ pub(crate) struct Shared {
 }
 
 /// The device limits a render must stay within.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, PartialEq)]
 pub struct DeviceLimits {
     /// `maxStorageBufferRange`: the largest storage binding, in bytes.
     pub max_storage_range: u64,
@@ -94,9 +94,14 @@ pub struct DeviceLimits {
     pub max_storage_buffers: u32,
     /// `minStorageBufferOffsetAlignment`: where a split list's chunks may start.
     pub storage_offset_alignment: u64,
+    /// `timestampPeriod`: nanoseconds a timestamp tick lasts.
+    pub timestamp_period: f32,
+    /// The compute queue's `timestampValidBits`; 0: no timestamps, so GPU
+    /// time is the host's clock around each pass.
+    pub timestamp_bits: u32,
 }
 
-fn limits_of(inst: &ash::Instance, pd: vk::PhysicalDevice) -> DeviceLimits {
+fn limits_of(inst: &ash::Instance, pd: vk::PhysicalDevice, queue_family: u32) -> DeviceLimits {
     // SAFETY: plain queries on a physical device of this instance.
     let props = unsafe { inst.get_physical_device_properties(pd) };
     let mut max_allocation = 1u64 << 30;
@@ -115,6 +120,11 @@ fn limits_of(inst: &ash::Instance, pd: vk::PhysicalDevice) -> DeviceLimits {
         max_group_count: l.max_compute_work_group_count,
         max_storage_buffers: l.max_per_stage_descriptor_storage_buffers,
         storage_offset_alignment: l.min_storage_buffer_offset_alignment.max(1),
+        timestamp_period: l.timestamp_period,
+        // SAFETY: a plain query on a physical device of this instance.
+        timestamp_bits: unsafe { inst.get_physical_device_queue_family_properties(pd) }
+            .get(queue_family as usize)
+            .map_or(0, |f| f.timestamp_valid_bits),
     }
 }
 
@@ -445,7 +455,7 @@ impl Context {
         // SAFETY: the family was requested with one queue at device creation.
         let queue = unsafe { device.get_device_queue(queue_family, 0) };
         let validation = instance.debug.is_some();
-        let limits = limits_of(&instance.instance, physical);
+        let limits = limits_of(&instance.instance, physical, queue_family);
         Ok(Context {
             shared: Arc::new(Shared {
                 _entry: instance.entry,

@@ -39,7 +39,7 @@ use crate::layout::{
 use crate::methods::Methods;
 use crate::probe::{PathRecord, ProbeImage};
 use crate::scene::Effects;
-use crate::timing::Timings;
+use crate::timing::{Timings, CLOSEST_RAYS, GPU_TIME_NS, SHADOW_RAYS};
 
 fn key(options: &GpuRenderOptions, kernel: Kernel, split: bool, light_skips: bool) -> PipelineKey {
     PipelineKey {
@@ -250,6 +250,10 @@ struct TileWork {
     /// Passes submitted so far (the one in flight included).
     pass: u32,
     budget: u32,
+    /// Pixels whose work is not finished, as of the last pass read.
+    left: u32,
+    /// Closest-hit and shadow rays the tile's passes cast so far.
+    rays: [u64; 2],
 }
 
 /// The Vulkan objects of a renderer that are not buffers, destroyed on drop.
@@ -258,6 +262,9 @@ struct Pools {
     command_pool: vk::CommandPool,
     descriptor_pool: vk::DescriptorPool,
     fences: Vec<vk::Fence>,
+    /// Two timestamps per slot, around its dispatch (null when the queue
+    /// has none).
+    queries: vk::QueryPool,
 }
 
 impl Drop for Pools {
@@ -275,6 +282,9 @@ impl Drop for Pools {
             }
             device.destroy_descriptor_pool(self.descriptor_pool, None);
             device.destroy_command_pool(self.command_pool, None);
+            if self.queries != vk::QueryPool::null() {
+                device.destroy_query_pool(self.queries, None);
+            }
         }
     }
 }
@@ -328,6 +338,9 @@ struct Slot {
     fence: vk::Fence,
     /// A set of the plain layout, then one of the split layout.
     sets: [vk::DescriptorSet; 2],
+    /// Its two timestamps in `Pools::queries` (null pool: none).
+    queries: vk::QueryPool,
+    first_query: u32,
 }
 
 /// Everything a render needs on the device, kept across renders.
@@ -380,8 +393,9 @@ impl GpuRenderer {
         Ok(self.pipeline.get(key(options, kernel, false, false))?.1)
     }
 
-    /// Renders `scene` as seen by `camera`. `progress(tiles_done, tiles_total)`
-    /// is called after each tile is read back.
+    /// Renders `scene` as seen by `camera`. `progress(pixels_done,
+    /// pixels_total)` is called after every pass: a pixel is done when its
+    /// last pass has run.
     pub fn render(
         &self,
         scene: &GpuScene,
@@ -405,6 +419,7 @@ impl GpuRenderer {
         background: [f32; 3],
         options: &GpuRenderOptions,
         rects: &[[u32; 4]],
+        progress: &(dyn Fn(u64, u64) + Sync),
     ) -> Result<(Framebuffer, Timings), GpuError> {
         let edge = tile_edge(options.tile_size);
         let mut parts = Vec::new();
@@ -425,7 +440,7 @@ impl GpuRenderer {
             options,
             Job::Rects,
             &parts,
-            &|_, _| {},
+            progress,
         )
     }
 
@@ -677,7 +692,11 @@ impl GpuRenderer {
         timings.add("upload", upload_start.elapsed());
 
         let mut in_flight: VecDeque<(usize, TileWork)> = VecDeque::new();
-        let mut done = 0u64;
+        let total_pixels: u64 = tiles.iter().map(|t| u64::from(t.size[0] * t.size[1])).sum();
+        let mut done_pixels = 0u64;
+        let mut rays = [0u64; 2];
+        let mut device_time = Duration::ZERO;
+        let mut timed_by_device = true;
         let mut readback = Duration::ZERO;
         let mut passes = 0u64;
         let mut retries = 0u64;
@@ -695,6 +714,8 @@ impl GpuRenderer {
                     rect,
                     pass: 1,
                     budget: options.pass_budget.max(1),
+                    left: rect.size[0] * rect.size[1],
+                    rays: [0; 2],
                 };
                 self.submit_pass(
                     &mut res.slots[s],
@@ -712,6 +733,10 @@ impl GpuRenderer {
             };
             let slot = &res.slots[s];
             self.wait(slot, work, options)?;
+            match self.dispatch_time(slot) {
+                Some(t) => device_time += t,
+                None => timed_by_device = false,
+            }
             let status: GpuStatus =
                 *bytemuck::from_bytes(&slot.status.mapped()[..std::mem::size_of::<GpuStatus>()]);
             if status.cut > 0 {
@@ -729,9 +754,18 @@ impl GpuRenderer {
                 // passes are deterministic, so the image is the same.
                 work.budget = (work.budget / BUDGET_BACKOFF).max(1);
                 work.pass = 1;
+                let size = work.rect.size[0] * work.rect.size[1];
+                done_pixels -= u64::from(size - work.left);
+                work.left = size;
+                work.rays = [0; 2];
                 retries += 1;
             } else if status.remaining > 0 && kernel == Kernel::Render {
+                work.rays[0] += u64::from(status.closest_rays);
+                work.rays[1] += u64::from(status.shadow_rays);
                 work.pass += 1;
+                done_pixels += u64::from(work.left.saturating_sub(status.remaining));
+                work.left = status.remaining.min(work.left);
+                progress(done_pixels, total_pixels);
             } else {
                 let start = Instant::now();
                 let texels: &[[f32; 4]] = bytemuck::cast_slice(slot.readback.get().mapped());
@@ -741,8 +775,10 @@ impl GpuRenderer {
                 };
                 sink(work.rect, &texels[..n]);
                 readback += start.elapsed();
-                done += 1;
-                progress(done, tiles.len() as u64);
+                rays[0] += work.rays[0] + u64::from(status.closest_rays);
+                rays[1] += work.rays[1] + u64::from(status.shadow_rays);
+                done_pixels += u64::from(work.left);
+                progress(done_pixels, total_pixels);
                 free.push(s);
                 continue;
             }
@@ -763,6 +799,17 @@ impl GpuRenderer {
         );
         timings.add("readback", readback);
         timings.count("passes", passes);
+        if timed_by_device {
+            timings.count(GPU_TIME_NS, device_time.as_nanos() as u64);
+        }
+        // A pass's counters are 32-bit: counts that may have wrapped are
+        // left out rather than shown wrong.
+        let most_per_pass =
+            u64::from(tile_edge) * u64::from(tile_edge) * u64::from(options.pass_budget);
+        if kernel == Kernel::Render && most_per_pass <= u64::from(u32::MAX) {
+            timings.count(CLOSEST_RAYS, rays[0]);
+            timings.count(SHADOW_RAYS, rays[1]);
+        }
         if split.split {
             timings.count("split lists", 1);
         }
@@ -781,6 +828,7 @@ impl GpuRenderer {
             command_pool: vk::CommandPool::null(),
             descriptor_pool: vk::DescriptorPool::null(),
             fences: Vec::new(),
+            queries: vk::QueryPool::null(),
         };
         // Each slot has a set of each layout (plain and split).
         let both = bindings(false).iter().chain(bindings(true));
@@ -815,6 +863,16 @@ impl GpuRenderer {
                     None,
                 )
                 .call("vkCreateDescriptorPool")?;
+            if shared.limits.timestamp_bits > 0 {
+                pools.queries = device
+                    .create_query_pool(
+                        &vk::QueryPoolCreateInfo::default()
+                            .query_type(vk::QueryType::TIMESTAMP)
+                            .query_count(2 * SLOTS as u32),
+                        None,
+                    )
+                    .call("vkCreateQueryPool")?;
+            }
         }
         let upload_command = self.command_buffer(&pools)?;
         let upload_fence = self.fence(&mut pools)?;
@@ -1004,7 +1062,37 @@ impl GpuRenderer {
             command,
             fence,
             sets,
+            queries: pools.queries,
+            first_query: 2 * index as u32,
         })
+    }
+
+    /// The device time of the slot's last dispatch, from its timestamps.
+    fn dispatch_time(&self, slot: &Slot) -> Option<Duration> {
+        if slot.queries == vk::QueryPool::null() {
+            return None;
+        }
+        let mut ticks = [0u64; 2];
+        // SAFETY: both queries were written by the pass just waited for.
+        unsafe {
+            self.ctx.shared.device.get_query_pool_results(
+                slot.queries,
+                slot.first_query,
+                &mut ticks,
+                vk::QueryResultFlags::TYPE_64,
+            )
+        }
+        .ok()?;
+        let limits = &self.ctx.shared.limits;
+        let mask = if limits.timestamp_bits >= 64 {
+            u64::MAX
+        } else {
+            (1u64 << limits.timestamp_bits) - 1
+        };
+        let elapsed = ticks[1].wrapping_sub(ticks[0]) & mask;
+        Some(Duration::from_secs_f64(
+            elapsed as f64 * f64::from(limits.timestamp_period) * 1e-9,
+        ))
     }
 
     /// Points the slot's descriptor set of the render's layout at its
@@ -1125,7 +1213,7 @@ impl GpuRenderer {
             });
         }
         let reset = GpuStatus::RESET;
-        let words: [u32; 4] = bytemuck::cast(reset);
+        let words: [u32; std::mem::size_of::<GpuStatus>() / 4] = bytemuck::cast(reset);
         let bytes = texels * TEXEL_BYTES;
         // SAFETY: the slot's previous submission was waited for before this
         // reuse; all handles are live.
@@ -1142,9 +1230,10 @@ impl GpuRenderer {
                 )
                 .call("vkBeginCommandBuffer")?;
             // The status starts each pass at RESET: the counters at 0 and
-            // first_cut at u32::MAX (fills of disjoint ranges).
-            device.cmd_fill_buffer(slot.command, slot.status.raw, 0, 8, words[0]);
-            device.cmd_fill_buffer(slot.command, slot.status.raw, 8, 4, words[2]);
+            // first_cut at u32::MAX (a fill per word).
+            for (i, &w) in words.iter().enumerate() {
+                device.cmd_fill_buffer(slot.command, slot.status.raw, 4 * i as u64, 4, w);
+            }
             let to_shader = vk::MemoryBarrier::default()
                 .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
                 .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE);
@@ -1166,7 +1255,24 @@ impl GpuRenderer {
                 &[slot.sets[usize::from(split)]],
                 &[],
             );
+            if slot.queries != vk::QueryPool::null() {
+                device.cmd_reset_query_pool(slot.command, slot.queries, slot.first_query, 2);
+                device.cmd_write_timestamp(
+                    slot.command,
+                    vk::PipelineStageFlags::TOP_OF_PIPE,
+                    slot.queries,
+                    slot.first_query,
+                );
+            }
             device.cmd_dispatch(slot.command, groups[0], groups[1], 1);
+            if slot.queries != vk::QueryPool::null() {
+                device.cmd_write_timestamp(
+                    slot.command,
+                    vk::PipelineStageFlags::COMPUTE_SHADER,
+                    slot.queries,
+                    slot.first_query + 1,
+                );
+            }
             let to_copy = vk::MemoryBarrier::default()
                 .src_access_mask(vk::AccessFlags::SHADER_WRITE)
                 .dst_access_mask(vk::AccessFlags::TRANSFER_READ | vk::AccessFlags::HOST_READ);

@@ -107,9 +107,9 @@ fn representable_in_f32(scene: &Scene) -> Scene {
 /// Writes every case's scene file into `dir` (created if missing); returns
 /// how many. Each file is written whole to a temporary name, then renamed.
 pub fn write_scenes(dir: &std::path::Path) -> Result<usize, Error> {
-    let io = |path: &std::path::Path, source: std::io::Error| Error::WriteFile {
+    let io = |path: &std::path::Path, error: std::io::Error| Error::WriteFile {
         path: path.to_path_buf(),
-        source,
+        error,
     };
     std::fs::create_dir_all(dir).map_err(|e| io(dir, e))?;
     let cases = cases();

@@ -89,9 +89,9 @@ impl ParseError {
 
 /// Reads and parses a scene file; `path` is also used in messages.
 pub fn read_scene(path: &Path) -> Result<Scene, Error> {
-    let bytes = std::fs::read(path).map_err(|source| Error::ReadScene {
+    let bytes = std::fs::read(path).map_err(|error| Error::ReadScene {
         path: path.to_path_buf(),
-        source,
+        error,
     })?;
     Ok(parse_scene(&bytes, &path.display().to_string())?)
 }

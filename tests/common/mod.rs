@@ -236,9 +236,10 @@ pub fn write_artifacts(
     let save = |suffix: &str, img: &image::RgbImage| {
         write_image(img, &dir.join(format!("{name}-{suffix}.png")), 95).expect("write artefact");
     };
+    let expected = expected.to_rgb8();
     save("actual", &actual.to_rgb8());
-    save("expected", &expected.to_rgb8());
-    save("diff", &cmp.diff_image());
+    save("diff", &cmp.diff_image(&expected));
+    save("expected", &expected);
     dir
 }
 
