@@ -13,7 +13,8 @@ use crate::memory::{self, MemoryNeed};
 use crate::methods::Methods;
 use crate::probe::{PathRecord, ProbeImage};
 use crate::progressive::{
-    Accumulator, Blocks, PassReport, Progressive, StopAt, Stopped, MIN_PASSES_FOR_TARGET,
+    Accumulator, Blocks, PassReport, Progressive, StopAt, Stopped, ADAPTIVE_FIRST_PASSES,
+    MIN_PASSES_FOR_TARGET,
 };
 use crate::region::Crop;
 use crate::scene::{Effects, Scene, Settings};
@@ -447,10 +448,13 @@ impl Renderer {
             }
             let mut done_blocks = false;
             if let (true, Some(target)) = (stop.adaptive, stop.aim()) {
-                if acc.passes() >= MIN_PASSES_FOR_TARGET {
+                if acc.passes() >= ADAPTIVE_FIRST_PASSES {
                     match acc.adaptive_blocks(&blocks, target) {
                         Some(active) => blocks.active = active,
-                        None => done_blocks = true,
+                        None if acc.passes() >= MIN_PASSES_FOR_TARGET => done_blocks = true,
+                        // Met already, but too early to trust: the stop
+                        // rule waits for its passes.
+                        None => {}
                     }
                 }
             }

@@ -216,8 +216,9 @@ fn adaptive_passes_reach_the_target_with_fewer_samples() {
                 truth <= target,
                 "{name} on {backend:?}: true RMSE {truth} above {target}"
             );
+            // Measured: 0.71 (soft_shadows) and 0.76 (motion_blur).
             assert!(
-                done.report.mean_samples < uniform.report.mean_samples,
+                done.report.mean_samples < 0.8 * uniform.report.mean_samples,
                 "{name} on {backend:?}: adaptive took {} samples per pixel, uniform {}",
                 done.report.mean_samples,
                 uniform.report.mean_samples
