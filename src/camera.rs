@@ -1,6 +1,8 @@
-//! The fixed camera of the classic assignment: at the origin, looking down -z,
-//! +y up, 60 degree vertical field of view, image plane at z = -1, one ray
-//! through each pixel centre, row 0 at the top.
+//! The camera the renderers trace from: the classic assignment's, at the
+//! origin, looking down -z, +y up, image plane at z = -1, one ray through
+//! each pixel centre, row 0 at the top; 60 degrees of vertical field of view
+//! unless a scene's `camera` block says otherwise (which also moves the
+//! scene into this camera's view, `Scene::in_view_space`).
 
 /// Vertical field of view, in degrees.
 pub const FOV_Y_DEGREES: f64 = 60.0;
@@ -20,7 +22,14 @@ pub struct Camera {
 
 impl Camera {
     pub fn new(width: u32, height: u32) -> Camera {
-        let half_y = (FOV_Y_DEGREES.to_radians() * 0.5).tan();
+        Camera::with_fov(width, height, FOV_Y_DEGREES)
+    }
+
+    /// As `new`, with a vertical field of view of `fov_y` degrees (a scene's
+    /// `camera` block; the view itself is moved into place on the scene,
+    /// `Scene::in_view_space`).
+    pub fn with_fov(width: u32, height: u32, fov_y: f64) -> Camera {
+        let half_y = (fov_y.to_radians() * 0.5).tan();
         let aspect = f64::from(width) / f64::from(height);
         Camera {
             width,

@@ -106,6 +106,29 @@ impl fmt::Display for SceneInfo<'_> {
                 b.min.x, b.min.y, b.min.z, b.max.x, b.max.y, b.max.z
             )?;
         }
+        for m in &s.meshes {
+            let b = m.bounds;
+            writeln!(
+                f,
+                "mesh        {}: {} triangles, bounds ({}, {}, {}) .. ({}, {}, {}), loaded in {:.1} ms",
+                m.file,
+                m.triangles,
+                b.min.x,
+                b.min.y,
+                b.min.z,
+                b.max.x,
+                b.max.y,
+                b.max.z,
+                m.load_time.as_secs_f64() * 1e3
+            )?;
+        }
+        if let Some(c) = &s.camera {
+            writeln!(
+                f,
+                "camera      eye ({}, {}, {}), looking at ({}, {}, {}), up ({}, {}, {}), {}° vertical field of view",
+                c.eye.x, c.eye.y, c.eye.z, c.look.x, c.look.y, c.look.z, c.up.x, c.up.y, c.up.z, c.fov
+            )?;
+        }
         if self.bvh.scale != 1.0 {
             writeln!(
                 f,

@@ -23,6 +23,7 @@ pub mod info;
 pub mod layout;
 pub mod lights_on_surfaces;
 pub mod memory;
+pub mod mesh;
 pub mod methods;
 pub mod plot;
 pub mod probe;

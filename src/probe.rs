@@ -133,6 +133,28 @@ impl PathRecord {
         self
     }
 
+    /// The record (in view space) back in the world of a scene whose
+    /// `camera` moved it: points, normals and directions.
+    pub fn in_world(mut self, cam: &crate::scene::CameraSpec) -> PathRecord {
+        use crate::scene::CameraSpec;
+        use glam::DVec3;
+        let Some(basis) = cam.basis() else {
+            return self;
+        };
+        let point = |p: [f64; 3]| cam.to_world(&basis, DVec3::from(p)).to_array();
+        let dir = |v: [f64; 3]| CameraSpec::dir_to_world(&basis, DVec3::from(v)).to_array();
+        self.dir = dir(self.dir);
+        if let Some(surface) = &mut self.surface {
+            surface.point = point(surface.point);
+            surface.normal = dir(surface.normal);
+            surface.geometric_normal = dir(surface.geometric_normal);
+        }
+        for light in &mut self.lights {
+            light.origin = point(light.origin);
+        }
+        self
+    }
+
     /// Decodes the shader's `probe_pixel` record. Texels: 0 (prim, t, b1,
     /// b2), 1 (ray direction, flags), 2 (colour, shadow mask); for a hit
     /// also 3 (point, shininess), 4 (normal, lights listed), 5 geometric

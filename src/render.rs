@@ -162,6 +162,8 @@ pub struct Renderer {
 pub struct PreparedScene {
     prepared: Prepared,
     packed: Option<GpuScene>,
+    /// The scene in view space, when its camera moved it.
+    view: Option<Scene>,
     /// What preparing took (BVH build, packing).
     pub timings: Timings,
 }
@@ -296,12 +298,13 @@ impl Renderer {
         }
     }
 
+    /// `scene` must be in view space (`Scene::in_view_space`).
     fn prepare(&self, scene: &Scene, timings: &mut Timings) -> Prepared {
         let effects = self.options.effects(scene);
         let features = self.options.features(scene);
         let bvh = timings.time("bvh", || Bvh::for_render(scene, &effects));
         Prepared {
-            camera: Camera::new(self.options.width, self.options.height),
+            camera: Camera::with_fov(self.options.width, self.options.height, scene.fov()),
             bvh,
             effects,
             features,
@@ -331,7 +334,7 @@ impl Renderer {
     pub fn prepare_pipeline(&self, scene: &Scene) -> Result<Duration, Error> {
         match &self.engine {
             Engine::Gpu { renderer, .. } => {
-                let p = self.prepare(scene, &mut Timings::default());
+                let p = self.prepare(&scene.in_view_space(), &mut Timings::default());
                 Ok(renderer.prepare(&self.gpu_options(&p), crate::gpu::Kernel::Render)?)
             }
             Engine::Cpu(_) => Ok(Duration::ZERO),
@@ -367,6 +370,7 @@ impl Renderer {
         region: Region,
         progress: &(dyn Fn(u64, u64) + Sync),
     ) -> Result<RenderOutput, Error> {
+        let scene = &*scene.in_view_space();
         let mut timings = self.take_setup_timings();
         let p = self.prepare(scene, &mut timings);
         let packed = self.pack(scene, &p, &mut timings);
@@ -377,11 +381,17 @@ impl Renderer {
     /// so that timing them measures the render alone.
     pub fn prepare_scene(&self, scene: &Scene) -> PreparedScene {
         let mut timings = Timings::default();
-        let prepared = self.prepare(scene, &mut timings);
-        let packed = self.pack(scene, &prepared, &mut timings);
+        let view = match scene.in_view_space() {
+            std::borrow::Cow::Owned(s) => Some(s),
+            std::borrow::Cow::Borrowed(_) => None,
+        };
+        let seen = view.as_ref().unwrap_or(scene);
+        let prepared = self.prepare(seen, &mut timings);
+        let packed = self.pack(seen, &prepared, &mut timings);
         PreparedScene {
             prepared,
             packed,
+            view,
             timings,
         }
     }
@@ -395,7 +405,7 @@ impl Renderer {
     ) -> Result<RenderOutput, Error> {
         let timings = self.take_setup_timings();
         self.render_prepared(
-            scene,
+            ready.view.as_ref().unwrap_or(scene),
             &ready.prepared,
             ready.packed.as_ref(),
             timings,
@@ -414,6 +424,7 @@ impl Renderer {
         on_pass: &mut dyn FnMut(&PassReport),
     ) -> Result<Progressive, Error> {
         let start = Instant::now();
+        let scene = &*scene.in_view_space();
         let mut timings = self.take_setup_timings();
         let mut p = self.prepare(scene, &mut timings);
         let packed = self.pack(scene, &p, &mut timings);
@@ -587,6 +598,7 @@ impl Renderer {
 
     /// Every pixel's primary hit and shadow verdicts (pixel centres, sample 0).
     pub fn probe(&self, scene: &Scene) -> Result<ProbeImage, Error> {
+        let scene = &*scene.in_view_space();
         let p = self.prepare(scene, &mut Timings::default());
         Ok(match &self.engine {
             Engine::Gpu { renderer, .. } => renderer.probe(
@@ -610,6 +622,8 @@ impl Renderer {
                 pixel[0], pixel[1], o.width, o.height
             )));
         }
+        let world = scene;
+        let scene = &*scene.in_view_space();
         let p = self.prepare(scene, &mut Timings::default());
         let record = match &self.engine {
             Engine::Gpu { renderer, .. } => renderer.pixel_path(
@@ -627,7 +641,11 @@ impl Renderer {
                 pixel,
             ),
         };
-        Ok(record.in_scene_units(p.bvh.scale))
+        let record = record.in_scene_units(p.bvh.scale);
+        Ok(match world.camera {
+            Some(cam) if !cam.is_classic_placement() => record.in_world(&cam),
+            _ => record,
+        })
     }
 
     fn probed<T>(&self, value: T) -> Probed<T> {

@@ -101,7 +101,7 @@ fn malformed_inputs_report_line_col_and_what_was_expected() {
             "1\namb: 0 0 0\ncone\n".into(),
             3,
             1,
-            "expected `sphere`, `triangle`, `light` or a setting (`reflect:`, `spp:`, `shadow_samples:`, `shutter:`, `seed:`, `fps:`), found `cone`",
+            "expected `sphere`, `triangle`, `light`, `mesh`, `camera` or a setting (`reflect:`, `spp:`, `shadow_samples:`, `shutter:`, `seed:`, `fps:`), found `cone`",
         ),
         (
             "1\namb: 0 0 0\nsphere\npos: 0 0 -3\nradius: 1\n".into(),

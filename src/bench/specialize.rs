@@ -51,7 +51,6 @@ pub fn run_specialize(
     let renderer = device
         .gpu()
         .ok_or_else(|| Error::InvalidOption("no GPU for the specialisation benchmark".into()))?;
-    let camera = Camera::new(options.width, options.height);
     let ms = |d: Duration| d.as_secs_f64() * 1e3;
     let mut out = String::new();
     let _ = writeln!(
@@ -73,7 +72,8 @@ pub fn run_specialize(
         .map_err(GpuError::from)?
         .len();
     for path in &options.scenes {
-        let scene = read_scene(path)?;
+        let scene = read_scene(path)?.in_view_space().into_owned();
+        let camera = Camera::with_fov(options.width, options.height, scene.fov());
         let name = path.file_stem().map_or_else(
             || path.display().to_string(),
             |s| s.to_string_lossy().into_owned(),

@@ -13,7 +13,8 @@ use super::{print_warnings, EffectArgs};
 pub fn run(path: &Path, effects: &EffectArgs, size: [u32; 2]) -> anyhow::Result<ExitCode> {
     let scene = super::read_scene(path)?;
     print_warnings(&scene);
-    let bvh = Bvh::build(&scene);
+    // The tree the renderers build: over the scene as the camera sees it.
+    let bvh = Bvh::build(&scene.in_view_space());
     let effects = Effects::resolve(&effects.settings().or(scene.settings));
     println!("scene       {}", path.display());
     println!(

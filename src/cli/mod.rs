@@ -3,6 +3,7 @@
 mod accuracy;
 mod bench;
 mod compare;
+mod convert;
 mod devices;
 mod info;
 mod render;
@@ -44,6 +45,9 @@ enum Command {
     /// .exr, alpha marking each part's pixels) into OUT, bit for bit the
     /// image one render would have made.
     Stitch(stitch::StitchArgs),
+    /// Write a model (.obj, .ply, .off) or a scene with `mesh` blocks as a
+    /// classic scene, or a scene's triangles as OBJ (with an MTL file).
+    Convert(convert::ConvertArgs),
     /// List the Vulkan devices found.
     Devices,
     /// Show what a scene holds, what it calls for and the shader it gets.
@@ -141,9 +145,11 @@ impl Cli {
             Command::Render(_) => Some("or render on the CPU reference: `--backend cpu`"),
             Command::Accuracy(_) => Some("or sweep the CPU reference alone: `--backend cpu`"),
             Command::Bench(b) => Some(b.no_device_hint()),
-            Command::Devices | Command::Compare(_) | Command::Stitch(_) | Command::Info { .. } => {
-                None
-            }
+            Command::Devices
+            | Command::Compare(_)
+            | Command::Stitch(_)
+            | Command::Convert(_)
+            | Command::Info { .. } => None,
         }
     }
 }
@@ -156,6 +162,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Bench(args) => bench::run(args),
         Command::Accuracy(args) => accuracy::run(args),
         Command::Stitch(args) => stitch::run(args),
+        Command::Convert(args) => convert::run(args),
         Command::Devices => devices::run(),
         Command::Info {
             scene,
@@ -221,7 +228,8 @@ pub fn print_warnings(scene: &glint::scene::Scene) {
             glint::scene::WARNINGS_KEPT
         );
     }
-    let small = scene.unresolvable();
+    // Sizes against distances from the camera, wherever it is.
+    let small = scene.in_view_space().unresolvable();
     if !small.is_empty() {
         let shown = glint::scene::WARNINGS_KEPT.min(small.len());
         eprintln!(

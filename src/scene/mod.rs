@@ -87,6 +87,76 @@ impl Light {
     }
 }
 
+/// Where the image is taken from (extension `camera`): without one, the
+/// classic camera (`Camera::CLASSIC`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct CameraSpec {
+    pub eye: DVec3,
+    /// A point the camera looks at.
+    pub look: DVec3,
+    /// Which way is up (need not be perpendicular to the view).
+    pub up: DVec3,
+    /// Vertical field of view, degrees.
+    pub fov: f64,
+}
+
+impl CameraSpec {
+    /// The classic camera: at the origin, looking down -z, +y up, 60°.
+    pub const CLASSIC: CameraSpec = CameraSpec {
+        eye: DVec3::ZERO,
+        look: DVec3::new(0.0, 0.0, -1.0),
+        up: DVec3::Y,
+        fov: crate::camera::FOV_Y_DEGREES,
+    };
+
+    /// The view's right, up and backward axes (a right-handed basis; the
+    /// camera looks down -backward). None when `look` is `eye` or `up`
+    /// is along the view.
+    pub fn basis(&self) -> Option<[DVec3; 3]> {
+        let forward = (self.look - self.eye).try_normalize()?;
+        let right = forward.cross(self.up).try_normalize()?;
+        let up = right.cross(forward);
+        Some([right, up, -forward])
+    }
+
+    /// Whether the view is the classic one's placement (origin, -z, +y),
+    /// whatever its field of view: then no transform is needed.
+    pub fn is_classic_placement(&self) -> bool {
+        self.eye == DVec3::ZERO && self.basis() == Some([DVec3::X, DVec3::Y, DVec3::Z])
+    }
+
+    /// A world point in view space (camera at the origin looking down -z).
+    pub fn to_view(&self, basis: &[DVec3; 3], p: DVec3) -> DVec3 {
+        let d = p - self.eye;
+        DVec3::new(d.dot(basis[0]), d.dot(basis[1]), d.dot(basis[2]))
+    }
+
+    /// A world direction in view space.
+    pub fn dir_to_view(basis: &[DVec3; 3], v: DVec3) -> DVec3 {
+        DVec3::new(v.dot(basis[0]), v.dot(basis[1]), v.dot(basis[2]))
+    }
+
+    /// A view-space point back in the world.
+    pub fn to_world(&self, basis: &[DVec3; 3], p: DVec3) -> DVec3 {
+        self.eye + Self::dir_to_world(basis, p)
+    }
+
+    pub fn dir_to_world(basis: &[DVec3; 3], v: DVec3) -> DVec3 {
+        basis[0] * v.x + basis[1] * v.y + basis[2] * v.z
+    }
+}
+
+/// A `mesh` block as loaded, for `glint info`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct MeshInfo {
+    /// The file as the scene names it.
+    pub file: String,
+    pub triangles: usize,
+    /// After its transforms.
+    pub bounds: Bounds,
+    pub load_time: std::time::Duration,
+}
+
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Scene {
     pub ambient: DVec3,
@@ -101,6 +171,10 @@ pub struct Scene {
     pub warnings: Vec<Diagnostic>,
     /// Warnings past the first few of their kind: counted, not kept.
     pub more_warnings: usize,
+    /// The `camera` block, if any (extension).
+    pub camera: Option<CameraSpec>,
+    /// The `mesh` blocks, whose triangles are in `triangles` (extension).
+    pub meshes: Vec<MeshInfo>,
 }
 
 /// Warnings of one kind kept with their location; the rest are counted.
@@ -313,6 +387,59 @@ impl Scene {
             l.position += l.velocity * time;
         }
         s
+    }
+
+    /// The vertical field of view the image is taken with, degrees.
+    pub fn fov(&self) -> f64 {
+        self.camera.map_or(crate::camera::FOV_Y_DEGREES, |c| c.fov)
+    }
+
+    /// The scene in view space: what the renderers trace, with the camera
+    /// at the origin looking down -z (the classic camera) and the field of
+    /// view kept. Borrowed when there is no camera block or it is placed
+    /// as the classic one, so classic scenes are not touched. Positions
+    /// are moved and rotated in f64 (normals, velocities and light edges
+    /// rotated), once, before anything is rounded to f32.
+    pub fn in_view_space(&self) -> std::borrow::Cow<'_, Scene> {
+        let Some(cam) = self.camera else {
+            return std::borrow::Cow::Borrowed(self);
+        };
+        if cam.is_classic_placement() {
+            return std::borrow::Cow::Borrowed(self);
+        }
+        let Some(basis) = cam.basis() else {
+            // The parser refuses such a camera; keep the scene as it is.
+            return std::borrow::Cow::Borrowed(self);
+        };
+        let point = |p: DVec3| cam.to_view(&basis, p);
+        let dir = |v: DVec3| CameraSpec::dir_to_view(&basis, v);
+        let mut s = self.clone();
+        for sphere in &mut s.spheres {
+            sphere.center = point(sphere.center);
+            sphere.velocity = dir(sphere.velocity);
+        }
+        for t in &mut s.triangles {
+            for v in &mut t.vertices {
+                v.position = point(v.position);
+                v.normal = dir(v.normal);
+            }
+            t.velocity = dir(t.velocity);
+        }
+        for l in &mut s.lights {
+            l.position = point(l.position);
+            l.velocity = dir(l.velocity);
+            if let LightShape::Rect { edge_u, edge_v } = l.shape {
+                l.shape = LightShape::Rect {
+                    edge_u: dir(edge_u),
+                    edge_v: dir(edge_v),
+                };
+            }
+        }
+        s.camera = Some(CameraSpec {
+            fov: cam.fov,
+            ..CameraSpec::CLASSIC
+        });
+        std::borrow::Cow::Owned(s)
     }
 
     /// The scene scaled by `factor` about the camera (the origin): positions,

@@ -31,7 +31,36 @@ use std::path::Path;
 
 use glam::DVec3;
 
-use super::{Effects, Light, LightShape, Material, Scene, Sphere, Triangle, Vertex};
+use super::{
+    Bounds, CameraSpec, Effects, Light, LightShape, Material, MeshInfo, Scene, Sphere, Triangle,
+    Vertex,
+};
+
+/// A `mesh` block's placement step.
+#[derive(Clone, Copy, Debug)]
+enum Transform {
+    Scale(f64),
+    Translate(DVec3),
+    Rotate(glam::DQuat),
+}
+
+impl Transform {
+    fn point(&self, p: DVec3) -> DVec3 {
+        match self {
+            Transform::Scale(s) => p * *s,
+            Transform::Translate(t) => p + *t,
+            Transform::Rotate(q) => *q * p,
+        }
+    }
+
+    /// Normals turn with rotations only (scales are uniform and positive).
+    fn direction(&self, n: DVec3) -> DVec3 {
+        match self {
+            Transform::Rotate(q) => *q * n,
+            _ => n,
+        }
+    }
+}
 use crate::Error;
 
 /// A message tied to a place in a scene file, shown with the source line and
@@ -150,6 +179,11 @@ impl<'a> Parser<'a> {
             if self.setting(&tok)? {
                 continue;
             }
+            if tok.is("camera") {
+                // Like the settings, not counted as an object.
+                self.camera(&tok)?;
+                continue;
+            }
             found += 1;
             if found > declared {
                 return Err(self.error_at(
@@ -158,7 +192,7 @@ impl<'a> Parser<'a> {
                         "the file declares {declared} object(s) on its first line, \
                          but object {found} starts here"
                     ),
-                    Some("make the count on the first line match the number of sphere, triangle and light blocks"),
+                    Some("make the count on the first line match the number of sphere, triangle, light and mesh blocks"),
                 ));
             }
             if tok.is("sphere") {
@@ -170,11 +204,13 @@ impl<'a> Parser<'a> {
             } else if tok.is("light") {
                 let light = self.light()?;
                 self.scene.lights.push(light);
+            } else if tok.is("mesh") {
+                self.mesh()?;
             } else {
                 return Err(self.expected(
                     &tok,
-                    "`sphere`, `triangle`, `light` or a setting (`reflect:`, `spp:`, \
-                     `shadow_samples:`, `shutter:`, `seed:`, `fps:`)",
+                    "`sphere`, `triangle`, `light`, `mesh`, `camera` or a setting (`reflect:`, \
+                     `spp:`, `shadow_samples:`, `shutter:`, `seed:`, `fps:`)",
                 ));
             }
         }
@@ -306,6 +342,138 @@ impl<'a> Parser<'a> {
         })
     }
 
+    /// `camera` with `eye:`, `look:`, `up:`, `fov:` in any order, each
+    /// optional (the classic camera's values where left out); at most one.
+    fn camera(&mut self, tok: &Token<'a>) -> PResult<()> {
+        if self.scene.camera.is_some() {
+            return Err(self.error_at(
+                tok,
+                "a second `camera` block; a scene has at most one".into(),
+                None,
+            ));
+        }
+        let mut cam = CameraSpec::CLASSIC;
+        loop {
+            if self.optional_tag("eye:") {
+                cam.eye = self.vec3("the camera position")?;
+            } else if self.optional_tag("look:") {
+                cam.look = self.vec3("the point the camera looks at")?;
+            } else if self.optional_tag("up:") {
+                cam.up = self.vec3("the camera's up direction")?;
+            } else if self.optional_tag("fov:") {
+                let (fov, t) = self.number("the vertical field of view in degrees")?;
+                if !(fov > 0.0 && fov < 180.0) {
+                    return Err(self.expected(&t, "a field of view above 0 and below 180 degrees"));
+                }
+                cam.fov = fov;
+            } else {
+                break;
+            }
+        }
+        if cam.basis().is_none() {
+            return Err(self.error_at(
+                tok,
+                "this camera has no view: `look:` is its `eye:`, or `up:` points along the view"
+                    .into(),
+                Some("look at a point other than the eye, with an up direction across the view"),
+            ));
+        }
+        self.scene.camera = Some(cam);
+        Ok(())
+    }
+
+    /// `mesh` with `file:` (relative to the scene file), an optional
+    /// material, and `scale:`, `translate:`, `rotate:` applied in the order
+    /// written; its triangles join the scene's.
+    fn mesh(&mut self) -> PResult<()> {
+        let file_tag = self.tag("file:")?;
+        let name_tok = self.require("a model file name (.obj, .ply or .off)")?;
+        let name = String::from_utf8_lossy(name_tok.text).into_owned();
+        let mut material = None;
+        let mut transforms: Vec<Transform> = Vec::new();
+        loop {
+            let saved = (self.pos, self.line, self.line_start);
+            if self.optional_tag("dif:") {
+                (self.pos, self.line, self.line_start) = saved;
+                material = Some(self.material()?);
+            } else if self.optional_tag("scale:") {
+                let (s, t) = self.number("the mesh's scale factor")?;
+                if s <= 0.0 {
+                    return Err(self.expected(&t, "a scale above 0"));
+                }
+                transforms.push(Transform::Scale(s));
+            } else if self.optional_tag("translate:") {
+                transforms.push(Transform::Translate(self.vec3("the mesh's translation")?));
+            } else if self.optional_tag("rotate:") {
+                let axis = self.vec3("the rotation axis")?;
+                let (degrees, _) = self.number("the rotation angle in degrees")?;
+                let Some(axis) = axis.try_normalize() else {
+                    return Err(self.error_at(
+                        &name_tok,
+                        "the rotation axis of this mesh has no direction (0 0 0)".into(),
+                        None,
+                    ));
+                };
+                transforms.push(Transform::Rotate(glam::DQuat::from_axis_angle(
+                    axis,
+                    degrees.to_radians(),
+                )));
+            } else {
+                break;
+            }
+        }
+        let start = std::time::Instant::now();
+        let file = self.base_dir().join(&name);
+        let mesh = crate::mesh::load(&file).map_err(|e| {
+            self.error_at(
+                &name_tok,
+                format!("cannot load this mesh: {e}"),
+                Some("the path is relative to the scene file"),
+            )
+        })?;
+        if material.is_none() && mesh.missing_material() {
+            let what = if mesh.materials.is_empty() {
+                format!("{name} brings no materials, and this mesh block gives none")
+            } else {
+                format!(
+                    "some faces of {name} have no material (no `usemtl` before them), and this \
+                     mesh block gives none"
+                )
+            };
+            return Err(self.error_at(
+                &file_tag,
+                what,
+                Some("add `dif: r g b  spe: r g b  shi: s` after the file name"),
+            ));
+        }
+        let triangles = mesh.triangles(
+            material,
+            |p| transforms.iter().fold(p, |p, t| t.point(p)),
+            |n| transforms.iter().fold(n, |n, t| t.direction(n)),
+        );
+        let bounds = triangles
+            .iter()
+            .map(Triangle::bounds)
+            .fold(Bounds::EMPTY, Bounds::union);
+        let before = self.scene.triangles.len();
+        self.scene.triangles.extend(triangles);
+        self.scene.meshes.push(MeshInfo {
+            file: name,
+            triangles: self.scene.triangles.len() - before,
+            bounds,
+            load_time: start.elapsed(),
+        });
+        Ok(())
+    }
+
+    /// The directory `mesh` file names are relative to.
+    fn base_dir(&self) -> std::path::PathBuf {
+        match Path::new(self.path).parent() {
+            Some(d) if self.path != "<stdin>" => d.to_path_buf(),
+            _ => std::path::PathBuf::from("."),
+        }
+    }
+
     /// An optional `vel: x y z` (scene units per second).
     fn velocity(&mut self) -> PResult<DVec3> {
         if self.optional_tag("vel:") {
@@ -389,7 +557,7 @@ impl<'a> Parser<'a> {
     }
 
     fn tag(&mut self, tag: &str) -> PResult<Token<'a>> {
-        let tok = self.require(&format!("`{tag}`"))?;
+        let tok = self.require_with(|| format!("`{tag}`"))?;
         if tok.is(tag) {
             Ok(tok)
         } else {
@@ -405,7 +573,7 @@ impl<'a> Parser<'a> {
     }
 
     fn number(&mut self, what: &str) -> PResult<(f64, Token<'a>)> {
-        let tok = self.require(&format!("a number ({what})"))?;
+        let tok = self.require_with(|| format!("a number ({what})"))?;
         let value = std::str::from_utf8(tok.text)
             .ok()
             .and_then(|s| s.parse::<f64>().ok());
@@ -424,13 +592,20 @@ impl<'a> Parser<'a> {
 
     /// The next token, or an "unexpected end of file" error naming `what`.
     fn require(&mut self, what: &str) -> PResult<Token<'a>> {
+        self.require_with(|| what.to_string())
+    }
+
+    /// As `require`, with `what` worked out only for the error: every
+    /// token of a file passes here, and a message per token would cost an
+    /// allocation each (most of the parse time on big files).
+    fn require_with(&mut self, what: impl FnOnce() -> String) -> PResult<Token<'a>> {
         match self.next_token() {
             Some(tok) => Ok(tok),
             None => {
                 let end = self.end_token();
                 Err(self.error_at(
                     &end,
-                    format!("expected {what}, found end of file"),
+                    format!("expected {}, found end of file", what()),
                     Some("the file looks truncated"),
                 ))
             }

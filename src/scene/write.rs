@@ -35,8 +35,9 @@ fn velocity(out: &mut String, v: DVec3) {
 }
 
 /// The scene in the classic format: count, ambient, lights, spheres,
-/// triangles. Extensions (settings, area lights, velocities) are written
-/// only where the scene has them, so a classic scene stays classic.
+/// triangles (a mesh's among them). Extensions (settings, camera, area
+/// lights, velocities) are written only where the scene has them, so a
+/// classic scene stays classic.
 pub fn to_classic_text(scene: &Scene) -> String {
     let mut out = String::new();
     let count = scene.lights.len() + scene.spheres.len() + scene.triangles.len();
@@ -58,6 +59,16 @@ pub fn to_classic_text(scene: &Scene) -> String {
         if let Some(v) = value {
             let _ = writeln!(out, "{name}: {}", num(v));
         }
+    }
+    if let Some(c) = &scene.camera {
+        let _ = writeln!(
+            out,
+            "camera\neye: {}\nlook: {}\nup: {}\nfov: {}",
+            v3(c.eye),
+            v3(c.look),
+            v3(c.up),
+            num(c.fov)
+        );
     }
     for l in &scene.lights {
         let _ = writeln!(out, "light\npos: {}\ncol: {}", v3(l.position), v3(l.color));

@@ -57,14 +57,16 @@ pub fn classic_scene(name: &str) -> Option<Scene> {
 }
 
 /// Every `*.scene` under the project's `scenes/` (recursively, except the
-/// generated `scenes/hard/`, which tests/hard.rs covers, and the sampled
-/// `scenes/effects/`, which tests/effects.rs covers at smaller sizes), sorted.
+/// generated `scenes/hard/`, which tests/hard.rs covers, the sampled
+/// `scenes/effects/`, which tests/effects.rs covers at smaller sizes, and
+/// `scenes/real/`, whose models are not in the repository: tests/mesh.rs
+/// covers real models), sorted.
 pub fn own_scenes() -> Vec<PathBuf> {
     fn walk(dir: &Path, out: &mut Vec<PathBuf>) {
         for entry in std::fs::read_dir(dir).into_iter().flatten().flatten() {
             let p = entry.path();
             if p.is_dir() {
-                if !p.ends_with("hard") && !p.ends_with("effects") {
+                if !p.ends_with("hard") && !p.ends_with("effects") && !p.ends_with("real") {
                     walk(&p, out);
                 }
             } else if p.extension().is_some_and(|e| e == "scene") {
@@ -154,7 +156,13 @@ pub fn render_cpu(
         ..CpuOptions::default()
     };
     let bvh = Bvh::for_render(scene, &effects);
-    glint::cpu::render(scene, &bvh, &Camera::new(w, h), &options, &|_, _| {})
+    glint::cpu::render(
+        scene,
+        &bvh,
+        &Camera::with_fov(w, h, scene.fov()),
+        &options,
+        &|_, _| {},
+    )
 }
 
 /// Renders on the GPU with the scene's own settings, the shader specialised
@@ -186,7 +194,13 @@ pub fn render_gpu_with(
     };
     let (fb, _) = gpu
         .renderer
-        .render(&packed, &Camera::new(w, h), bg, &options, &|_, _| {})
+        .render(
+            &packed,
+            &Camera::with_fov(w, h, scene.fov()),
+            bg,
+            &options,
+            &|_, _| {},
+        )
         .expect("GPU render succeeds");
     let messages = gpu.ctx.validation_messages() - before;
     assert_eq!(

@@ -1,0 +1,158 @@
+use std::path::{Path, PathBuf};
+use std::process::ExitCode;
+
+use anyhow::Context as _;
+use glint::mesh::Format;
+
+#[derive(clap::Args, Debug)]
+pub struct ConvertArgs {
+    /// A model (.obj, .ply, .off) or a scene file (anything else).
+    input: PathBuf,
+    /// A classic scene (.scene or any other name), or .obj (with OUT.mtl
+    /// beside it).
+    out: PathBuf,
+    /// A model's material where its file has none: diffuse colour.
+    #[arg(long, value_name = "R,G,B", default_value = "0.7,0.7,0.7", value_parser = parse_rgb)]
+    dif: [f64; 3],
+    /// Specular colour, as --dif.
+    #[arg(long, value_name = "R,G,B", default_value = "0.3,0.3,0.3", value_parser = parse_rgb)]
+    spe: [f64; 3],
+    /// Phong exponent, as --dif.
+    #[arg(long, value_name = "S", default_value_t = 20.0)]
+    shi: f64,
+}
+
+pub fn run(args: ConvertArgs) -> anyhow::Result<ExitCode> {
+    let to_obj = Format::of(&args.out) == Some(Format::Obj);
+    if !to_obj && Format::of(&args.out).is_some() {
+        return Err(glint::Error::BadOutput {
+            path: args.out.clone(),
+            reason: "convert writes a classic scene or .obj; .ply and .off are read only".into(),
+        }
+        .into());
+    }
+    if args.shi < 0.0 || !args.shi.is_finite() {
+        return Err(glint::Error::InvalidOption(format!(
+            "--shi must be zero or more, found {}",
+            args.shi
+        ))
+        .into());
+    }
+    check_writable(&args.out)?;
+    let scene = if Format::of(&args.input).is_some() {
+        model_as_scene(&args)?
+    } else {
+        super::read_scene(&args.input)?
+    };
+    super::print_warnings(&scene);
+    if to_obj {
+        let mtl = args.out.with_extension("mtl");
+        let mtl_name = mtl
+            .file_name()
+            .map_or("out.mtl".into(), |n| n.to_string_lossy().into_owned());
+        let (obj_text, mtl_text, info) = glint::mesh::write_obj(&scene, &mtl_name);
+        write(&args.out, &obj_text)?;
+        write(&mtl, &mtl_text)?;
+        println!(
+            "wrote {} ({} triangles) and {} ({} materials)",
+            args.out.display(),
+            info.triangles,
+            mtl.display(),
+            info.materials
+        );
+        if info.mixed_materials > 0 {
+            eprintln!(
+                "note: {} triangles have a material per corner; OBJ gives a face one, so each got its first corner's",
+                info.mixed_materials
+            );
+        }
+        if info.spheres_skipped + info.lights_skipped > 0 {
+            eprintln!(
+                "note: OBJ holds triangles only: {} spheres and {} lights were left out",
+                info.spheres_skipped, info.lights_skipped
+            );
+        }
+        return Ok(ExitCode::SUCCESS);
+    }
+    // The classic camera sees the scene as its camera block did.
+    let mut classic = scene.in_view_space().into_owned();
+    let fov = classic.fov();
+    classic.camera = None;
+    if fov != glint::camera::FOV_Y_DEGREES {
+        classic.camera = Some(glint::scene::CameraSpec {
+            fov,
+            ..glint::scene::CameraSpec::CLASSIC
+        });
+        eprintln!(
+            "note: the camera's field of view is {fov}°, not the classic 60°: it is kept as a \
+             `camera` block, which classic tools do not read"
+        );
+    }
+    write(&args.out, &glint::scene::to_classic_text(&classic))?;
+    println!(
+        "wrote {} ({} triangles, {} spheres, {} lights, in the classic camera's view)",
+        args.out.display(),
+        classic.triangles.len(),
+        classic.spheres.len(),
+        classic.lights.len()
+    );
+    Ok(ExitCode::SUCCESS)
+}
+
+/// A model file alone, as a scene: its triangles where the file puts them,
+/// its materials (else `--dif/--spe/--shi` where it has none), a dim
+/// ambient and one white light at the camera, so that it renders as it is.
+fn model_as_scene(args: &ConvertArgs) -> Result<glint::scene::Scene, glint::Error> {
+    use glam::DVec3;
+    let mesh = glint::mesh::load(&args.input).map_err(|e| glint::Error::ReadImage {
+        path: args.input.clone(),
+        message: e.to_string(),
+    })?;
+    let given = glint::scene::Material {
+        kd: DVec3::from(args.dif),
+        ks: DVec3::from(args.spe),
+        shininess: args.shi,
+    };
+    // The file's materials where it has them for every face; vertex
+    // colours, where it has them, are the diffuse colour either way.
+    let material = (mesh.materials.is_empty() || mesh.missing_material()).then_some(given);
+    Ok(glint::scene::Scene {
+        ambient: DVec3::splat(0.1),
+        triangles: mesh.triangles(material, |p| p, |n| n),
+        lights: vec![glint::scene::Light::point(DVec3::ZERO, DVec3::ONE)],
+        ..Default::default()
+    })
+}
+
+/// R,G,B in f64, so that `--dif 0.3,...` is the scene file's 0.3.
+fn parse_rgb(s: &str) -> Result<[f64; 3], String> {
+    let v: Vec<Option<f64>> = s.split(',').map(|p| p.trim().parse().ok()).collect();
+    match v.as_slice() {
+        [Some(r), Some(g), Some(b)] if [r, g, b].iter().all(|c| (0.0..=1.0).contains(*c)) => {
+            Ok([*r, *g, *b])
+        }
+        _ => Err(format!("expected R,G,B with each in [0, 1], found `{s}`")),
+    }
+}
+
+fn check_writable(out: &Path) -> Result<(), glint::Error> {
+    let dir = match out.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if out.is_dir() || !dir.is_dir() {
+        return Err(glint::Error::BadOutput {
+            path: out.to_path_buf(),
+            reason: if out.is_dir() {
+                "it is a directory".into()
+            } else {
+                format!("the directory {} does not exist", dir.display())
+            },
+        });
+    }
+    Ok(())
+}
+
+fn write(path: &Path, text: &str) -> anyhow::Result<()> {
+    std::fs::write(path, text).with_context(|| format!("writing {}", path.display()))
+}
