@@ -347,10 +347,7 @@ impl<'a> Text<'a> {
         let Some(t) = tok else {
             return Err(self.error(format!("expected {what}, found the end of the line")));
         };
-        match std::str::from_utf8(t)
-            .ok()
-            .and_then(|s| s.parse::<f64>().ok())
-        {
+        match crate::scene::number::parse_f64(t) {
             Some(v) if v.is_finite() && v.abs() <= f64::from(f32::MAX) => Ok(v),
             _ => Err(self.error(format!(
                 "expected {what}, found `{}`",

@@ -4,6 +4,7 @@
 //! file's own numbers; the GPU packing (`layout`) and the CPU f32 path round
 //! them to f32 once, in one place each.
 
+pub(crate) mod number;
 mod parse;
 mod settings;
 mod write;

@@ -574,9 +574,7 @@ impl<'a> Parser<'a> {
 
     fn number(&mut self, what: &str) -> PResult<(f64, Token<'a>)> {
         let tok = self.require_with(|| format!("a number ({what})"))?;
-        let value = std::str::from_utf8(tok.text)
-            .ok()
-            .and_then(|s| s.parse::<f64>().ok());
+        let value = super::number::parse_f64(tok.text);
         match value {
             // The GPU computes in f32: a larger value would arrive there as
             // infinity.
