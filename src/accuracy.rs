@@ -365,7 +365,7 @@ pub fn markdown(rows: &[Measured], header: &str, target: f64) -> String {
 /// (`Plot::to_svg`, `Plot::to_image`).
 pub fn plot(rows: &[Measured], title: &str) -> Plot {
     let (w, h) = (720.0, 480.0);
-    let (left, right, top, bottom) = (70.0, 200.0, 40.0, 50.0);
+    let (left, right, top, bottom) = (70.0, 230.0, 40.0, 50.0);
     let pts: Vec<(f64, f64)> = rows
         .iter()
         .filter(|m| m.errors.rmse > 0.0)

@@ -122,7 +122,7 @@ pub fn run(args: AccuracyArgs) -> anyhow::Result<ExitCode> {
         };
         match Renderer::new(&options) {
             Ok(r) => {
-                notes.push(format!("GPU: {}", r.name()));
+                notes.push(r.name());
                 renderers.insert((Target::Gpu, Methods::Robust), r);
                 targets.push(Target::Gpu);
             }
