@@ -30,32 +30,13 @@ fn fast_path(text: &[u8]) -> Option<f64> {
     let mut mantissa: u64 = 0;
     let mut digits = 0u32;
     let mut exponent: i32 = 0;
-    while let Some((&c, r)) = rest.split_first() {
-        if !c.is_ascii_digit() {
-            break;
-        }
-        // Leading zeros are not significant digits.
-        if mantissa != 0 || c != b'0' {
-            digits += 1;
-        }
-        mantissa = mantissa.wrapping_mul(10).wrapping_add(u64::from(c - b'0'));
-        rest = r;
-    }
-    let mut any = text.len() != rest.len() + usize::from(negative || text.first() == Some(&b'+'));
+    let whole = take_digits(&mut rest, &mut mantissa, &mut digits);
+    let mut any = whole > 0;
     if let Some((b'.', r)) = rest.split_first() {
         rest = r;
-        while let Some((&c, r)) = rest.split_first() {
-            if !c.is_ascii_digit() {
-                break;
-            }
-            if mantissa != 0 || c != b'0' {
-                digits += 1;
-            }
-            mantissa = mantissa.wrapping_mul(10).wrapping_add(u64::from(c - b'0'));
-            exponent -= 1;
-            any = true;
-            rest = r;
-        }
+        let fraction = take_digits(&mut rest, &mut mantissa, &mut digits);
+        exponent -= fraction as i32;
+        any |= fraction > 0;
     }
     if !any || digits > 15 {
         return None;
@@ -91,6 +72,25 @@ fn fast_path(text: &[u8]) -> Option<f64> {
         m / *POW10.get(exponent.unsigned_abs() as usize)?
     };
     Some(if negative { -value } else { value })
+}
+
+/// Reads the digits at the start of `rest` into `mantissa` (wrapping: the
+/// caller gives up past 15 significant `digits`); returns how many.
+fn take_digits(rest: &mut &[u8], mantissa: &mut u64, digits: &mut u32) -> usize {
+    let mut n = 0;
+    while let Some((&c, r)) = rest.split_first() {
+        if !c.is_ascii_digit() {
+            break;
+        }
+        // Leading zeros are not significant digits.
+        if *mantissa != 0 || c != b'0' {
+            *digits += 1;
+        }
+        *mantissa = mantissa.wrapping_mul(10).wrapping_add(u64::from(c - b'0'));
+        *rest = r;
+        n += 1;
+    }
+    n
 }
 
 #[cfg(test)]
