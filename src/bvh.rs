@@ -137,6 +137,10 @@ impl Bvh {
     /// the f32 slack spheres have: the shader computes its position at a
     /// time in f32, which can round past the f64 box.
     pub fn build_swept(scene: &Scene, span: f64) -> Bvh {
+        Bvh::build_swept_with(scene, span, PARALLEL_MIN)
+    }
+
+    fn build_swept_with(scene: &Scene, span: f64, parallel_min: usize) -> Bvh {
         let scale = scene.render_scale();
         let scene = &*scene.in_render_space(scale);
         let spheres = scene.spheres.iter().enumerate().map(|(i, s)| {
@@ -165,34 +169,99 @@ impl Bvh {
             ..Bvh::default()
         };
         if !prims.is_empty() {
-            bvh.nodes.reserve(2 * prims.len());
-            bvh.build_node(&mut prims, 0, 0);
+            let (nodes, depth) = build_tree(&mut prims, 0, 0, parallel_min);
+            bvh.nodes = nodes;
+            bvh.depth = depth;
         }
         bvh.prim_refs = prims.iter().map(|p| p.reference).collect();
         bvh.surfaces_at_lights = crate::lights_on_surfaces::find(scene, &bvh);
         bvh
     }
+}
 
-    /// Builds the subtree over `prims` (which start at `first` in the final
-    /// order) and returns its node index.
-    fn build_node(&mut self, prims: &mut [Prim], first: usize, depth: u32) -> usize {
-        self.depth = self.depth.max(depth);
-        let bounds = prims.iter().fold(Bounds::EMPTY, |b, p| b.union(p.bounds));
-        let index = self.nodes.len();
-        self.nodes
-            .push(node(bounds, first as u32, prims.len() as u32));
-        if prims.len() <= 1 || depth + 1 >= BVH_MAX_DEPTH {
-            return index;
+/// The top `PARALLEL_LEVELS` levels of the tree build their two halves on
+/// two threads (rayon) where a half holds at least `PARALLEL_MIN`
+/// primitives, each subtree into its own list, joined after; below, one
+/// thread builds a subtree in place. Joining copies a level's nodes once,
+/// so only a few levels do it (enough subtrees for 32 threads). The split
+/// decisions do not depend on it: the tree is the same node for node
+/// (tested).
+const PARALLEL_LEVELS: u32 = 5;
+const PARALLEL_MIN: usize = 4096;
+
+/// The subtree over `prims` (which start at `first` in the final order),
+/// flattened depth-first with its root at index 0 and child indices
+/// relative to it, and its depth below `depth`.
+fn build_tree(
+    prims: &mut [Prim],
+    first: usize,
+    depth: u32,
+    parallel_min: usize,
+) -> (Vec<GpuBvhNode>, u32) {
+    if depth >= PARALLEL_LEVELS || prims.len() < 2 * parallel_min {
+        let mut nodes = Vec::with_capacity(2 * prims.len());
+        let deepest = build_in_place(&mut nodes, prims, first, depth);
+        return (nodes, deepest);
+    }
+    let bounds = prims.iter().fold(Bounds::EMPTY, |b, p| b.union(p.bounds));
+    let leaf = node(bounds, first as u32, prims.len() as u32);
+    let Some(mid) = split(prims, bounds) else {
+        return (vec![leaf], depth);
+    };
+    let (left, right) = prims.split_at_mut(mid);
+    let ((mut nodes, left_depth), (right_nodes, right_depth)) = rayon::join(
+        || build_tree(left, first, depth + 1, parallel_min),
+        || build_tree(right, first + mid, depth + 1, parallel_min),
+    );
+    // Parent, then the left subtree, then the right: shift each subtree's
+    // child indices by where it lands.
+    let mut parent = leaf;
+    parent.count = 0;
+    parent.right_or_first = (1 + nodes.len()) as u32;
+    shift(&mut nodes, 1);
+    let right_at = 1 + nodes.len() as u32;
+    let mut out = Vec::with_capacity(1 + nodes.len() + right_nodes.len());
+    out.push(parent);
+    out.append(&mut nodes);
+    let start = out.len();
+    out.extend(right_nodes);
+    shift(&mut out[start..], right_at);
+    (out, left_depth.max(right_depth))
+}
+
+/// The subtree over `prims` appended to `nodes` (child indices relative to
+/// the list's start); returns its deepest level.
+fn build_in_place(
+    nodes: &mut Vec<GpuBvhNode>,
+    prims: &mut [Prim],
+    first: usize,
+    depth: u32,
+) -> u32 {
+    let bounds = prims.iter().fold(Bounds::EMPTY, |b, p| b.union(p.bounds));
+    let index = nodes.len();
+    nodes.push(node(bounds, first as u32, prims.len() as u32));
+    if prims.len() <= 1 || depth + 1 >= BVH_MAX_DEPTH {
+        return depth;
+    }
+    let Some(mid) = split(prims, bounds) else {
+        return depth;
+    };
+    let (left, right) = prims.split_at_mut(mid);
+    let left_depth = build_in_place(nodes, left, first, depth + 1);
+    let right_index = nodes.len();
+    let right_depth = build_in_place(nodes, right, first + mid, depth + 1);
+    nodes[index].right_or_first = right_index as u32;
+    nodes[index].count = 0;
+    left_depth.max(right_depth)
+}
+
+/// Adds `by` to the child indices of the interior nodes (leaves hold
+/// primitive offsets, which are global already).
+fn shift(nodes: &mut [GpuBvhNode], by: u32) {
+    for n in nodes {
+        if n.count == 0 {
+            n.right_or_first += by;
         }
-        let Some(mid) = split(prims, bounds) else {
-            return index;
-        };
-        let (left, right) = prims.split_at_mut(mid);
-        self.build_node(left, first, depth + 1);
-        let right_index = self.build_node(right, first + mid, depth + 1);
-        self.nodes[index].right_or_first = right_index as u32;
-        self.nodes[index].count = 0;
-        index
     }
 }
 
@@ -301,6 +370,42 @@ fn round_up(x: f64) -> f32 {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Building subtrees on several threads makes the same tree, node for
+    /// node, as building them one after the other.
+    #[test]
+    fn parallel_build_is_the_sequential_tree() {
+        use crate::scene::{Material, Triangle, Vertex};
+        let mut state = 7u32;
+        let mut next = || {
+            state = crate::cpu::sample::hash_u32(state);
+            f64::from(state) / f64::from(u32::MAX) * 20.0 - 10.0
+        };
+        let material = Material {
+            kd: DVec3::ONE,
+            ks: DVec3::ZERO,
+            shininess: 1.0,
+        };
+        let mut scene = Scene::default();
+        for _ in 0..20_000 {
+            let c = DVec3::new(next(), next(), next() - 20.0);
+            let vertices = [0.0, 0.1, 0.2].map(|d| Vertex {
+                position: c + DVec3::new(d * next(), d * next(), d),
+                normal: DVec3::Z,
+                material,
+            });
+            scene.triangles.push(Triangle {
+                vertices,
+                velocity: DVec3::ZERO,
+            });
+        }
+        let parallel = Bvh::build_swept_with(&scene, 0.0, 64);
+        let sequential = Bvh::build_swept_with(&scene, 0.0, usize::MAX);
+        assert!(parallel.nodes.len() > 10_000);
+        assert_eq!(parallel.nodes, sequential.nodes);
+        assert_eq!(parallel.prim_refs, sequential.prim_refs);
+        assert_eq!(parallel.depth, sequential.depth);
+    }
 
     #[test]
     fn outward_rounding_contains_the_f64_value() {
