@@ -80,7 +80,8 @@ pub struct RenderArgs {
     width: u32,
     #[arg(long, default_value_t = glint::camera::DEFAULT_HEIGHT, value_parser = clap::value_parser!(u32).range(1..=16384))]
     height: u32,
-    /// auto: the best Vulkan device, else the CPU reference (with a note).
+    /// auto: the best hardware Vulkan device; the CPU reference when there is
+    /// none or only a software one such as lavapipe (with a note).
     #[arg(long, value_enum, default_value = "auto")]
     backend: BackendArg,
     /// Vulkan device by index or name (see `glint devices`).
