@@ -176,6 +176,16 @@ fn encode<W: Write + std::io::Seek>(
 /// known extension, not a directory, in a directory that exists and takes
 /// new files (a probe file is created and removed).
 pub fn check_output(path: &Path) -> Result<(), Error> {
+    if !path.is_dir() {
+        ImageFile::of(path)?;
+    }
+    check_writable(path)
+}
+
+/// Checks, before any work, that a file can be written at `path`: not a
+/// directory, in a directory that exists and takes new files (a probe file
+/// is created and removed).
+pub fn check_writable(path: &Path) -> Result<(), Error> {
     let bad = |reason: String| Error::BadOutput {
         path: path.to_path_buf(),
         reason,
@@ -186,7 +196,6 @@ pub fn check_output(path: &Path) -> Result<(), Error> {
             path.join("out.png").display()
         )));
     }
-    ImageFile::of(path)?;
     let dir = match path.parent() {
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),

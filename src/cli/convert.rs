@@ -38,7 +38,7 @@ pub fn run(args: ConvertArgs) -> anyhow::Result<ExitCode> {
         ))
         .into());
     }
-    check_writable(&args.out)?;
+    glint::framebuffer::check_writable(&args.out)?;
     let scene = if Format::of(&args.input).is_some() {
         model_as_scene(&args)?
     } else {
@@ -133,24 +133,6 @@ fn parse_rgb(s: &str) -> Result<[f64; 3], String> {
         }
         _ => Err(format!("expected R,G,B with each in [0, 1], found `{s}`")),
     }
-}
-
-fn check_writable(out: &Path) -> Result<(), glint::Error> {
-    let dir = match out.parent() {
-        Some(d) if !d.as_os_str().is_empty() => d,
-        _ => Path::new("."),
-    };
-    if out.is_dir() || !dir.is_dir() {
-        return Err(glint::Error::BadOutput {
-            path: out.to_path_buf(),
-            reason: if out.is_dir() {
-                "it is a directory".into()
-            } else {
-                format!("the directory {} does not exist", dir.display())
-            },
-        });
-    }
-    Ok(())
 }
 
 fn write(path: &Path, text: &str) -> anyhow::Result<()> {

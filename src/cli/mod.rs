@@ -228,8 +228,7 @@ pub fn print_warnings(scene: &glint::scene::Scene) {
             glint::scene::WARNINGS_KEPT
         );
     }
-    // Sizes against distances from the camera, wherever it is.
-    let small = scene.in_view_space().unresolvable();
+    let small = scene.unresolvable();
     if !small.is_empty() {
         let shown = glint::scene::WARNINGS_KEPT.min(small.len());
         eprintln!(

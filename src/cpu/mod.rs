@@ -60,24 +60,13 @@ pub fn render(
     options: &CpuOptions,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Framebuffer {
-    render_pixels(scene, bvh, camera, options, &|_, _| true, progress).0
+    render_where(scene, bvh, camera, options, &|_, _| true, progress).0
 }
 
 /// As `render`, only the pixels `keep` says (the others are 0): the CPU
 /// twin of the GPU's `render_rects`. Also returns the closest-hit and
 /// shadow rays cast.
 pub fn render_where(
-    scene: &Scene,
-    bvh: &Bvh,
-    camera: &Camera,
-    options: &CpuOptions,
-    keep: &(dyn Fn(u32, u32) -> bool + Sync),
-    progress: &(dyn Fn(u64, u64) + Sync),
-) -> (Framebuffer, [u64; 2]) {
-    render_pixels(scene, bvh, camera, options, keep, progress)
-}
-
-fn render_pixels(
     scene: &Scene,
     bvh: &Bvh,
     camera: &Camera,

@@ -327,14 +327,24 @@ impl Scene {
 
     /// Primitives too small for f32 where they are: a sphere whose radius,
     /// or a triangle whose longest edge, is under `RESOLVABLE` of its largest
-    /// coordinate (its distance from the camera, per axis). No scaling helps
+    /// coordinate in view space (its distance from the camera, per axis). No scaling helps
     /// these: f32 keeps 24 bits relative to the coordinate. Measured on a
     /// sphere seen head-on: mis-shaded in f32 from 2^-22, missed at 2^-24.
     /// Each entry: (what and where, for a message).
     pub fn unresolvable(&self) -> Vec<String> {
+        // Coordinates as the camera sees them (`in_view_space`), point by
+        // point, so a big scene is not copied for its warnings.
+        let view = self
+            .camera
+            .filter(|c| !c.is_classic_placement())
+            .and_then(|c| Some((c, c.basis()?)));
+        let seen = |p: DVec3| match &view {
+            Some((cam, basis)) => cam.to_view(basis, p),
+            None => p,
+        };
         let mut out = Vec::new();
         for (i, s) in self.spheres.iter().enumerate() {
-            let m = s.center.abs().max_element() + s.radius;
+            let m = seen(s.center).abs().max_element() + s.radius;
             if s.radius < RESOLVABLE * m {
                 let c = s.center;
                 out.push(format!(
@@ -345,7 +355,11 @@ impl Scene {
         }
         for (i, t) in self.triangles.iter().enumerate() {
             let [a, b, c] = t.vertices.map(|v| v.position);
-            let m = a.abs().max(b.abs()).max(c.abs()).max_element();
+            let m = seen(a)
+                .abs()
+                .max(seen(b).abs())
+                .max(seen(c).abs())
+                .max_element();
             let edge = (b - a).length().max((c - b).length()).max((a - c).length());
             // Degenerate triangles are never hit; the parser warns of them.
             if edge > 0.0 && edge < RESOLVABLE * m {
