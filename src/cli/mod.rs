@@ -206,14 +206,7 @@ pub fn read_scene(path: &std::path::Path) -> Result<glint::scene::Scene, glint::
     if path != std::path::Path::new("-") {
         return glint::scene::read_scene(path);
     }
-    let mut bytes = Vec::new();
-    std::io::Read::read_to_end(&mut std::io::stdin().lock(), &mut bytes).map_err(|error| {
-        glint::Error::ReadScene {
-            path: "<stdin>".into(),
-            error,
-        }
-    })?;
-    Ok(glint::scene::parse_scene(&bytes, "<stdin>")?)
+    glint::scene::parse_reader(std::io::stdin().lock(), std::path::Path::new("<stdin>"))
 }
 
 /// Prints the scene's warnings (with their source lines) to stderr.

@@ -9,7 +9,7 @@ mod parse;
 mod settings;
 mod write;
 
-pub use parse::{parse_scene, read_scene, Diagnostic, ParseError};
+pub use parse::{parse_reader, parse_scene, read_scene, Diagnostic, ParseError};
 pub use settings::{Effects, Settings};
 pub use write::to_classic_text;
 

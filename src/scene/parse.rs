@@ -27,6 +27,7 @@
 //! a [`ParseError`] with file:line:col, the token found and what was expected.
 
 use std::fmt;
+use std::io::Read;
 use std::path::Path;
 
 use glam::DVec3;
@@ -118,24 +119,93 @@ impl ParseError {
 
 /// Reads and parses a scene file; `path` is also used in messages.
 pub fn read_scene(path: &Path) -> Result<Scene, Error> {
-    let bytes = std::fs::read(path).map_err(|error| Error::ReadScene {
+    let file = std::fs::File::open(path).map_err(|error| Error::ReadScene {
         path: path.to_path_buf(),
         error,
     })?;
-    Ok(parse_scene(&bytes, &path.display().to_string())?)
+    parse_reader(file, path)
 }
 
 /// Parses classic-format scene text; `path` is only used in messages.
 pub fn parse_scene(src: &[u8], path: &str) -> Result<Scene, ParseError> {
-    Parser {
-        src,
-        path,
-        pos: 0,
-        line: 1,
-        line_start: 0,
-        scene: Scene::default(),
+    let mut parser = Parser::new(src, 0, true, path, State::default());
+    match parser.run()? {
+        Some(_) => unreachable!("a parser that has the whole input never waits for more"),
+        None => Ok(parser.state.scene),
     }
-    .parse()
+}
+
+/// Bytes read at a time by `parse_reader`.
+const CHUNK: usize = 1 << 20;
+/// An object starts only with this much input after it (or the end of the
+/// file), so one rarely straddles two reads; one that does (a block padded
+/// with this much whitespace) is parsed again from its start with more.
+const LOOKAHEAD: usize = 1 << 16;
+
+/// Parses a scene as it is read, holding a megabyte or so of the text at a
+/// time instead of the whole file: a 700 MB scene would otherwise be
+/// resident beside everything parsed from it. Messages are those of
+/// `parse_scene` on the whole text; `path` names the input in them.
+pub fn parse_reader(reader: impl Read, path: &Path) -> Result<Scene, Error> {
+    parse_windows(reader, path, CHUNK, LOOKAHEAD)
+}
+
+/// `parse_reader` reading `chunk` bytes at a time and starting an object
+/// only with `lookahead` bytes after it (tests try tiny ones).
+fn parse_windows(
+    mut reader: impl Read,
+    path: &Path,
+    chunk: usize,
+    lookahead: usize,
+) -> Result<Scene, Error> {
+    let name = path.display().to_string();
+    let io_error = |error| Error::ReadScene {
+        path: path.to_path_buf(),
+        error,
+    };
+    let mut buf: Vec<u8> = Vec::with_capacity(chunk + lookahead);
+    let mut base = 0;
+    let mut want = chunk;
+    let mut at_eof = false;
+    let mut state = State::default();
+    loop {
+        while !at_eof && buf.len() < want {
+            let room = (want - buf.len()) as u64;
+            match (&mut reader).take(room).read_to_end(&mut buf) {
+                Ok(0) => at_eof = true,
+                Ok(_) => {}
+                Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+                Err(e) => return Err(io_error(e)),
+            }
+        }
+        let mut parser = Parser::new(&buf, base, at_eof, &name, state);
+        parser.lookahead = lookahead;
+        let resume = parser.run()?;
+        state = parser.state;
+        let Some(pos) = resume else {
+            return Ok(state.scene);
+        };
+        // Where the current line began before `pos`, the characters of it
+        // dropped with the consumed input still count in its columns.
+        if state.line_start < base + pos {
+            let from = state.line_start.saturating_sub(base);
+            let dropped = String::from_utf8_lossy(&buf[from..pos]).chars().count();
+            if state.line_start >= base {
+                state.line_chars_before = dropped;
+            } else {
+                state.line_chars_before += dropped;
+            }
+        }
+        buf.drain(..pos);
+        base += pos;
+        // Nothing consumed from a full window: one object is longer than
+        // it, so read on until it fits.
+        want = if pos == 0 {
+            2 * buf.len().max(chunk)
+        } else {
+            chunk
+        };
+    }
 }
 
 #[derive(Clone, Copy)]
@@ -158,62 +228,92 @@ impl Token<'_> {
     }
 }
 
+/// What a parse carries from one window of the input to the next.
+#[derive(Default)]
+struct State {
+    scene: Scene,
+    /// Objects the first line declares; None before it is read.
+    declared: Option<u64>,
+    found: u64,
+    line: usize,
+    /// Byte offset in the whole input where the current line begins.
+    line_start: usize,
+    /// Characters of the current line before the window, when it began in
+    /// input already dropped.
+    line_chars_before: usize,
+}
+
 struct Parser<'a> {
+    /// The window of the input held now; `base` is its offset in the whole.
     src: &'a [u8],
+    base: usize,
+    /// Whether the window reaches the end of the input.
+    at_eof: bool,
+    /// A token ran into the end of a window that does not reach the end of
+    /// the input: whatever was parsed since the object began is redone
+    /// with more input.
+    starved: bool,
+    /// Input an object needs after its start before it is begun, when the
+    /// window does not reach the end.
+    lookahead: usize,
     path: &'a str,
     pos: usize,
     line: usize,
+    /// Absolute, as `State::line_start`.
     line_start: usize,
-    scene: Scene,
+    state: State,
 }
 
 type PResult<T> = Result<T, ParseError>;
 
+/// How much of `Scene` an object may have added, to undo it.
+struct Mark {
+    at: (usize, usize, usize),
+    lens: [usize; 5],
+    more_warnings: usize,
+    camera: Option<CameraSpec>,
+    found: u64,
+}
+
 impl<'a> Parser<'a> {
-    fn parse(mut self) -> PResult<Scene> {
-        let declared = self.object_count()?;
-        self.tag("amb:")?;
-        self.scene.ambient = self.vec3("the ambient colour")?;
-        let mut found: u64 = 0;
-        while let Some(tok) = self.next_token() {
-            if self.setting(&tok)? {
-                continue;
-            }
-            if tok.is("camera") {
-                // Like the settings, not counted as an object.
-                self.camera(&tok)?;
-                continue;
-            }
-            found += 1;
-            if found > declared {
-                return Err(self.error_at(
-                    &tok,
-                    format!(
-                        "the file declares {declared} object(s) on its first line, \
-                         but object {found} starts here"
-                    ),
-                    Some("make the count on the first line match the number of sphere, triangle, light and mesh blocks"),
-                ));
-            }
-            if tok.is("sphere") {
-                let sphere = self.sphere()?;
-                self.scene.spheres.push(sphere);
-            } else if tok.is("triangle") {
-                let triangle = self.triangle()?;
-                self.scene.triangles.push(triangle);
-            } else if tok.is("light") {
-                let light = self.light()?;
-                self.scene.lights.push(light);
-            } else if tok.is("mesh") {
-                self.mesh()?;
-            } else {
-                return Err(self.expected(
-                    &tok,
-                    "`sphere`, `triangle`, `light`, `mesh`, `camera` or a setting (`reflect:`, \
-                     `spp:`, `shadow_samples:`, `shutter:`, `seed:`, `fps:`)",
-                ));
+    fn new(src: &'a [u8], base: usize, at_eof: bool, path: &'a str, mut state: State) -> Self {
+        if state.line == 0 {
+            state.line = 1;
+        }
+        Parser {
+            src,
+            base,
+            at_eof,
+            starved: false,
+            lookahead: LOOKAHEAD,
+            path,
+            pos: 0,
+            line: state.line,
+            line_start: state.line_start,
+            state,
+        }
+    }
+
+    /// Parses what the window holds: None when the input is done, or the
+    /// window offset from which the next window must start.
+    fn run(&mut self) -> PResult<Option<usize>> {
+        if self.state.declared.is_none() {
+            match self.resumable(Self::header)? {
+                Some(declared) => self.state.declared = Some(declared),
+                None => return Ok(Some(self.pause())),
             }
         }
+        loop {
+            if !self.at_eof && self.src.len() - self.pos < self.lookahead {
+                return Ok(Some(self.pause()));
+            }
+            match self.resumable(Self::object)? {
+                Some(true) => {}
+                Some(false) => break,
+                None => return Ok(Some(self.pause())),
+            }
+        }
+        let (declared, found) = (self.state.declared.unwrap_or(0), self.state.found);
         if found < declared {
             let end = self.end_token();
             return Err(self.error_at(
@@ -225,7 +325,111 @@ impl<'a> Parser<'a> {
                 Some("the file may be truncated; otherwise fix the count on the first line"),
             ));
         }
-        Ok(self.scene)
+        Ok(None)
+    }
+
+    /// Hands the line position back to the state, for the next window.
+    fn pause(&mut self) -> usize {
+        self.state.line = self.line;
+        self.state.line_start = self.line_start;
+        self.pos
+    }
+
+    /// Runs one step of the parse; if it ran out of window, undoes it and
+    /// returns None (the position is back where the step began).
+    fn resumable<T>(&mut self, step: fn(&mut Self) -> PResult<T>) -> PResult<Option<T>> {
+        let mark = self.mark();
+        let result = step(self);
+        if self.starved {
+            self.undo(mark);
+            self.starved = false;
+            return Ok(None);
+        }
+        result.map(Some)
+    }
+
+    fn mark(&self) -> Mark {
+        let s = &self.state.scene;
+        Mark {
+            at: (self.pos, self.line, self.line_start),
+            lens: [
+                s.spheres.len(),
+                s.triangles.len(),
+                s.lights.len(),
+                s.meshes.len(),
+                s.warnings.len(),
+            ],
+            more_warnings: s.more_warnings,
+            camera: s.camera,
+            found: self.state.found,
+        }
+    }
+
+    fn undo(&mut self, m: Mark) {
+        (self.pos, self.line, self.line_start) = m.at;
+        let s = &mut self.state.scene;
+        s.spheres.truncate(m.lens[0]);
+        s.triangles.truncate(m.lens[1]);
+        s.lights.truncate(m.lens[2]);
+        s.meshes.truncate(m.lens[3]);
+        s.warnings.truncate(m.lens[4]);
+        s.more_warnings = m.more_warnings;
+        s.camera = m.camera;
+        self.state.found = m.found;
+    }
+
+    /// The object count and the ambient colour.
+    fn header(&mut self) -> PResult<u64> {
+        let declared = self.object_count()?;
+        self.tag("amb:")?;
+        self.state.scene.ambient = self.vec3("the ambient colour")?;
+        Ok(declared)
+    }
+
+    /// The next object or setting; false at the end of the input.
+    fn object(&mut self) -> PResult<bool> {
+        let Some(tok) = self.next_token() else {
+            return Ok(false);
+        };
+        if self.setting(&tok)? {
+            return Ok(true);
+        }
+        if tok.is("camera") {
+            // Like the settings, not counted as an object.
+            self.camera(&tok)?;
+            return Ok(true);
+        }
+        self.state.found += 1;
+        let (declared, found) = (self.state.declared.unwrap_or(0), self.state.found);
+        if found > declared {
+            return Err(self.error_at(
+                &tok,
+                format!(
+                    "the file declares {declared} object(s) on its first line, \
+                     but object {found} starts here"
+                ),
+                Some("make the count on the first line match the number of sphere, triangle, light and mesh blocks"),
+            ));
+        }
+        if tok.is("sphere") {
+            let sphere = self.sphere()?;
+            self.state.scene.spheres.push(sphere);
+        } else if tok.is("triangle") {
+            let triangle = self.triangle()?;
+            self.state.scene.triangles.push(triangle);
+        } else if tok.is("light") {
+            let light = self.light()?;
+            self.state.scene.lights.push(light);
+        } else if tok.is("mesh") {
+            self.mesh()?;
+        } else {
+            return Err(self.expected(
+                &tok,
+                "`sphere`, `triangle`, `light`, `mesh`, `camera` or a setting (`reflect:`, \
+                 `spp:`, `shadow_samples:`, `shutter:`, `seed:`, `fps:`)",
+            ));
+        }
+        Ok(true)
     }
 
     fn object_count(&mut self) -> PResult<u64> {
@@ -345,7 +549,7 @@ impl<'a> Parser<'a> {
     /// `camera` with `eye:`, `look:`, `up:`, `fov:` in any order, each
     /// optional (the classic camera's values where left out); at most one.
     fn camera(&mut self, tok: &Token<'a>) -> PResult<()> {
-        if self.scene.camera.is_some() {
+        if self.state.scene.camera.is_some() {
             return Err(self.error_at(
                 tok,
                 "a second `camera` block; a scene has at most one".into(),
@@ -378,7 +582,7 @@ impl<'a> Parser<'a> {
                 Some("look at a point other than the eye, with an up direction across the view"),
             ));
         }
-        self.scene.camera = Some(cam);
+        self.state.scene.camera = Some(cam);
         Ok(())
     }
 
@@ -455,11 +659,11 @@ impl<'a> Parser<'a> {
             .iter()
             .map(Triangle::bounds)
             .fold(Bounds::EMPTY, Bounds::union);
-        let before = self.scene.triangles.len();
-        self.scene.triangles.extend(triangles);
-        self.scene.meshes.push(MeshInfo {
+        let before = self.state.scene.triangles.len();
+        self.state.scene.triangles.extend(triangles);
+        self.state.scene.meshes.push(MeshInfo {
             file: name,
-            triangles: self.scene.triangles.len() - before,
+            triangles: self.state.scene.triangles.len() - before,
             bounds,
             load_time: start.elapsed(),
         });
@@ -499,29 +703,29 @@ impl<'a> Parser<'a> {
     fn setting(&mut self, tok: &Token<'a>) -> PResult<bool> {
         if tok.is("reflect:") {
             let v = self.integer("the reflection depth", 0, Effects::MAX_REFLECT)?;
-            self.scene.settings.reflect = Some(v);
+            self.state.scene.settings.reflect = Some(v);
         } else if tok.is("spp:") {
             let v = self.integer("samples per pixel", 1, Effects::MAX_SPP)?;
-            self.scene.settings.spp = Some(v);
+            self.state.scene.settings.spp = Some(v);
         } else if tok.is("shadow_samples:") {
             let what = "shadow samples per area light";
             let v = self.integer(what, 1, Effects::MAX_SHADOW_SAMPLES)?;
-            self.scene.settings.shadow_samples = Some(v);
+            self.state.scene.settings.shadow_samples = Some(v);
         } else if tok.is("seed:") {
             let v = self.integer("the random seed", 0, u32::MAX)?;
-            self.scene.settings.seed = Some(v);
+            self.state.scene.settings.seed = Some(v);
         } else if tok.is("shutter:") {
             let (v, t) = self.number("the shutter, a fraction of the frame interval")?;
             if !(0.0..=1.0).contains(&v) {
                 return Err(self.expected(&t, "a shutter between 0 (no blur) and 1"));
             }
-            self.scene.settings.shutter = Some(v);
+            self.state.scene.settings.shutter = Some(v);
         } else if tok.is("fps:") {
             let (v, t) = self.number("frames per second")?;
             if v <= 0.0 {
                 return Err(self.expected(&t, "a positive number of frames per second"));
             }
-            self.scene.settings.fps = Some(v);
+            self.state.scene.settings.fps = Some(v);
         } else {
             return Ok(false);
         }
@@ -614,16 +818,22 @@ impl<'a> Parser<'a> {
         while self.pos < self.src.len() && self.src[self.pos].is_ascii_whitespace() {
             if self.src[self.pos] == b'\n' {
                 self.line += 1;
-                self.line_start = self.pos + 1;
+                self.line_start = self.base + self.pos + 1;
             }
             self.pos += 1;
-        }
-        if self.pos >= self.src.len() {
-            return None;
         }
         let start = self.pos;
         while self.pos < self.src.len() && !self.src[self.pos].is_ascii_whitespace() {
             self.pos += 1;
+        }
+        if self.pos == self.src.len() && !self.at_eof {
+            // The token may go on in input not read yet.
+            self.starved = true;
+            self.pos = start;
+            return None;
+        }
+        if start == self.pos {
+            return None;
         }
         Some(Token {
             text: &self.src[start..self.pos],
@@ -653,15 +863,16 @@ impl<'a> Parser<'a> {
     /// times costs a counter, not a million diagnostics.
     fn warn(&mut self, d: Diagnostic) {
         let same = self
+            .state
             .scene
             .warnings
             .iter()
             .filter(|w| w.hint == d.hint)
             .count();
         if same < super::WARNINGS_KEPT {
-            self.scene.warnings.push(d);
+            self.state.scene.warnings.push(d);
         } else {
-            self.scene.more_warnings += 1;
+            self.state.scene.more_warnings += 1;
         }
     }
 
@@ -670,7 +881,12 @@ impl<'a> Parser<'a> {
     }
 
     fn diagnostic(&self, tok: &Token<'_>, message: String, hint: Option<&str>) -> Diagnostic {
-        let line_start = tok.line_start;
+        // The token's line may have begun in input already dropped (see
+        // `parse_reader`); its characters there still count.
+        let (line_start, chars_before) = match tok.line_start.checked_sub(self.base) {
+            Some(start) => (start, 0),
+            None => (0, self.state.line_chars_before),
+        };
         let chars = |bytes: &[u8]| String::from_utf8_lossy(bytes).chars().count();
         let line_end = self.src[tok.offset..]
             .iter()
@@ -689,8 +905,16 @@ impl<'a> Parser<'a> {
         while to < line_end && (self.src[to] & 0xC0) == 0x80 {
             to += 1;
         }
-        let lead = if from > line_start { "..." } else { "" };
-        let tail = if to < line_end { "..." } else { "" };
+        let lead = if from > line_start || chars_before > 0 {
+            "..."
+        } else {
+            ""
+        };
+        let tail = if to < line_end || (to == self.src.len() && !self.at_eof) {
+            "..."
+        } else {
+            ""
+        };
         // Tabs shown as one space keep the caret under the token.
         let source_line = format!(
             "{lead}{}{tail}",
@@ -702,7 +926,7 @@ impl<'a> Parser<'a> {
         Diagnostic {
             path: self.path.to_string(),
             line: tok.line,
-            col: chars(&self.src[line_start..tok.offset]) + 1,
+            col: chars_before + chars(&self.src[line_start..tok.offset]) + 1,
             message,
             hint: hint.map(str::to_string),
             source_line,
@@ -726,6 +950,81 @@ mod tests {
         assert_eq!(scene.ambient, DVec3::new(0.1, 1.0, 1e-16));
         assert_eq!(scene.spheres[0].material.kd.x, 0.44);
         assert_eq!(scene.lights.len(), 1);
+    }
+
+    /// The project's scenes, a one-line scene (its columns run across
+    /// windows) and the classic ones where present.
+    fn sources() -> Vec<Vec<u8>> {
+        let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+        let mut out = Vec::new();
+        for dir in ["scenes/effects", "scenes", "../shared/scenes/classic"] {
+            let Ok(entries) = std::fs::read_dir(root.join(dir)) else {
+                continue;
+            };
+            for e in entries.flatten() {
+                if e.path().extension().is_some_and(|x| x == "scene") {
+                    out.push(std::fs::read(e.path()).expect("readable scene"));
+                }
+            }
+        }
+        assert!(out.len() >= 6, "the project's scenes are missing");
+        let one_line: Vec<u8> = out[0]
+            .iter()
+            .map(|&b| if b == b'\n' { b' ' } else { b })
+            .collect();
+        out.push(one_line);
+        out
+    }
+
+    /// A parse error as the user reads it: where, what, and the hint.
+    fn summary(e: &Error) -> (String, String) {
+        let text = e.to_string();
+        let first = text.lines().next().unwrap_or_default().to_string();
+        let hint = text.lines().last().unwrap_or_default().to_string();
+        (first, hint)
+    }
+
+    #[test]
+    fn reading_in_windows_parses_as_the_whole_text_does() {
+        let sizes = [(1, 0), (7, 3), (64, 16), (300, 100), (4096, 1024)];
+        for src in sources() {
+            let whole = parse_scene(&src, "t").map_err(Error::from);
+            let mut corrupt = vec![src.clone()];
+            // Truncated mid-way, and a bad token in the middle and near
+            // the end, so errors are found in later windows.
+            corrupt.push(src[..src.len() * 2 / 3].to_vec());
+            for at in [src.len() / 2, src.len() - src.len() / 10] {
+                let mut bad = src.clone();
+                let end = at
+                    + bad[at..]
+                        .iter()
+                        .position(u8::is_ascii_whitespace)
+                        .unwrap_or(0);
+                bad.splice(end..end, " bogus\u{e9}".bytes());
+                corrupt.push(bad);
+            }
+            for (k, text) in corrupt.iter().enumerate() {
+                let whole = if k == 0 {
+                    whole.as_ref().map(Clone::clone).map_err(|e| e.to_string())
+                } else {
+                    parse_scene(text, "t").map_err(|e| e.to_string())
+                };
+                for (chunk, lookahead) in sizes {
+                    let windowed = parse_windows(&text[..], Path::new("t"), chunk, lookahead);
+                    match (&whole, &windowed) {
+                        (Ok(a), Ok(b)) => assert_eq!(a, b, "chunk {chunk}"),
+                        (Err(a), Err(b)) => {
+                            let a = (
+                                a.lines().next().unwrap().to_string(),
+                                a.lines().last().unwrap().to_string(),
+                            );
+                            assert_eq!(a, summary(b), "chunk {chunk}, case {k}");
+                        }
+                        _ => panic!("chunk {chunk}, case {k}: {whole:?} but {windowed:?}"),
+                    }
+                }
+            }
+        }
     }
 
     #[test]
