@@ -387,6 +387,7 @@ mod tests {
             shininess: 1.0,
         };
         let mut scene = Scene::default();
+        let material = scene.add_material(material);
         for _ in 0..20_000 {
             let c = DVec3::new(next(), next(), next() - 20.0);
             let vertices = [0.0, 0.1, 0.2].map(|d| Vertex {

@@ -39,10 +39,11 @@ impl Features {
 
     pub fn of(scene: &Scene, effects: &Effects) -> Features {
         let sphere_ks = scene.spheres.iter().any(|s| s.material.ks != DVec3::ZERO);
-        let triangle_ks = scene
-            .triangles
-            .iter()
-            .any(|t| t.vertices.iter().any(|v| v.material.ks != DVec3::ZERO));
+        let triangle_ks = scene.triangles.iter().any(|t| {
+            t.vertices
+                .iter()
+                .any(|v| scene.material(v).ks != DVec3::ZERO)
+        });
         Features {
             spheres: !scene.spheres.is_empty(),
             triangles: !scene.triangles.is_empty(),

@@ -289,13 +289,14 @@ impl GpuScene {
                 (materials.len() - 1) as u32
             })
         };
+        let ids: Vec<u32> = scene.materials.iter().map(&mut material_index).collect();
         let mut triangles = Vec::with_capacity(scene.triangles.len());
         let mut normals = Vec::with_capacity(scene.triangles.len());
         for t in &scene.triangles {
             triangles.push(GpuTriangle {
                 v: t.vertices.map(|v| {
                     let mut p = f4(v.position);
-                    p[3] = f32::from_bits(material_index(&v.material));
+                    p[3] = f32::from_bits(ids[v.material as usize]);
                     p
                 }),
             });

@@ -63,6 +63,7 @@ fn random_scene(seed: u64, spheres: usize, triangles: usize) -> Scene {
     for _ in 0..triangles {
         let c = rng.point();
         let m = material(&mut rng);
+        let m = scene.add_material(m);
         let v = |rng: &mut Lcg| Vertex {
             position: c + DVec3::new(
                 rng.in_range(-0.6, 0.6),

@@ -110,10 +110,8 @@ fn reflection_depth_zero_equals_the_plain_image_exactly() {
     for s in &mut matte.spheres {
         s.material.ks = glam::DVec3::ZERO;
     }
-    for t in &mut matte.triangles {
-        for v in &mut t.vertices {
-            v.material.ks = glam::DVec3::ZERO;
-        }
+    for m in &mut matte.materials {
+        m.ks = glam::DVec3::ZERO;
     }
     let mut matte_plain = matte.clone();
     matte_plain.settings.reflect = Some(0);

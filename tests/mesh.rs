@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 
 use common::*;
 use glam::DVec3;
-use glint::scene::{parse_scene, read_scene, to_classic_text, Material, Scene, Triangle, Vertex};
+use glint::scene::{parse_scene, read_scene, to_classic_text, Material, Scene, Vertex};
 
 /// A 2x2 grid of quads (9 vertices) at z = -3, each vertex with a tilted
 /// unit normal and a colour: the data every format below writes.
@@ -61,7 +61,7 @@ fn material() -> Material {
 /// The grid's triangles as the loaders should make them: quads fanned from
 /// their first corner; `normals`: the file's, else the flat (0, 0, 1)-ish
 /// smooth normals are not checked here; `colors`: kd from the vertex.
-fn expected(g: &Grid, normals: bool, colors: bool) -> Vec<Triangle> {
+fn expected(g: &Grid, normals: bool, colors: bool) -> Vec<Corners> {
     let mut out = Vec::new();
     for q in &g.quads {
         for tri in [[q[0], q[1], q[2]], [q[0], q[2], q[3]]] {
@@ -71,19 +71,29 @@ fn expected(g: &Grid, normals: bool, colors: bool) -> Vec<Triangle> {
                 if colors {
                     m.kd = DVec3::from(g.colors[i].map(|c| f64::from(c) / 255.0));
                 }
-                Vertex {
-                    position: g.positions[i],
-                    normal: if normals { g.normals[i] } else { DVec3::ZERO },
-                    material: m,
-                }
+                (
+                    g.positions[i],
+                    if normals { g.normals[i] } else { DVec3::ZERO },
+                    m,
+                )
             });
-            out.push(Triangle {
-                vertices,
-                velocity: DVec3::ZERO,
-            });
+            out.push(vertices);
         }
     }
     out
+}
+
+/// A triangle's corners with their materials looked up: position, normal,
+/// material.
+type Corners = [(DVec3, DVec3, Material); 3];
+
+fn corners(scene: &Scene) -> Vec<Corners> {
+    let corner = |v: &Vertex| (v.position, v.normal, *scene.material(v));
+    scene
+        .triangles
+        .iter()
+        .map(|t| [0, 1, 2].map(|c| corner(&t.vertices[c])))
+        .collect()
 }
 
 fn obj(g: &Grid) -> String {
@@ -203,21 +213,21 @@ fn every_format_loads_its_triangles_exactly() {
         let scene = read_scene(&scene_path).unwrap_or_else(|e| panic!("{name}: {e}"));
         let want = expected(&g, normals, colors);
         assert_eq!(scene.triangles.len(), want.len(), "{name}");
-        for (k, (got, want)) in scene.triangles.iter().zip(&want).enumerate() {
+        for (k, (got, want)) in corners(&scene).iter().zip(&want).enumerate() {
             for c in 0..3 {
-                let (a, b) = (&got.vertices[c], &want.vertices[c]);
-                assert_eq!(a.position, b.position, "{name}: triangle {k} corner {c}");
-                assert_eq!(a.material, b.material, "{name}: triangle {k} corner {c}");
+                let (a, b) = (&got[c], &want[c]);
+                assert_eq!(a.0, b.0, "{name}: triangle {k} corner {c}");
+                assert_eq!(a.2, b.2, "{name}: triangle {k} corner {c}");
                 if normals {
                     assert!(
-                        (a.normal - b.normal).length() < 1e-15,
+                        (a.1 - b.1).length() < 1e-15,
                         "{name}: triangle {k} corner {c}: {} vs {}",
-                        a.normal,
-                        b.normal
+                        a.1,
+                        b.1
                     );
                 } else {
                     // Smooth normals of a gently curved grid: unit, facing +z.
-                    assert!((a.normal.length() - 1.0).abs() < 1e-12 && a.normal.z > 0.9);
+                    assert!((a.1.length() - 1.0).abs() < 1e-12 && a.1.z > 0.9);
                 }
             }
         }
@@ -270,14 +280,11 @@ fn transforms_materials_and_counts() {
     .expect("parses");
     let t = &scene.triangles;
     assert_eq!(t.len(), 8);
-    assert_eq!(t[0].vertices[0].material.kd, DVec3::new(0.9, 0.1, 0.1));
-    assert_eq!(t[0].vertices[0].material.shininess, 30.0);
-    assert_eq!(t[7].vertices[0].material.kd, DVec3::new(0.1, 0.1, 0.9));
-    assert_eq!(
-        t[7].vertices[0].material.ks,
-        DVec3::ZERO,
-        "MTL's default Ks"
-    );
+    let m = |k: usize| *scene.material(&t[k].vertices[0]);
+    assert_eq!(m(0).kd, DVec3::new(0.9, 0.1, 0.1));
+    assert_eq!(m(0).shininess, 30.0);
+    assert_eq!(m(7).kd, DVec3::new(0.1, 0.1, 0.9));
+    assert_eq!(m(7).ks, DVec3::ZERO, "MTL's default Ks");
     // (x, y, z) -> scale 2 -> +1 in x -> 90 degrees about z: (-y', x', z').
     let p = g.positions[0];
     let want = DVec3::new(-(2.0 * p.y), 2.0 * p.x + 1.0, 2.0 * p.z);
@@ -293,7 +300,7 @@ fn transforms_materials_and_counts() {
     assert!(scene
         .triangles
         .iter()
-        .all(|t| t.vertices[0].material == material()));
+        .all(|t| *scene.material(&t.vertices[0]) == material()));
 }
 
 fn error_of(dir: &Path, scene: &str) -> String {
@@ -511,7 +518,7 @@ fn convert_round_trips() {
     ]);
     assert!(out.contains("8 triangles"), "{out}");
     let scene = read_scene(&d.join("ply.scene")).expect("converted scene parses");
-    assert_eq!(scene.triangles, expected(&g, true, true));
+    assert_eq!(corners(&scene), expected(&g, true, true));
     assert_eq!(scene.lights.len(), 1, "a light at the camera");
     // Model -> classic scene -> OBJ -> mesh block: every bit kept.
     run(&[
@@ -526,7 +533,7 @@ fn convert_round_trips() {
         "12",
     ]);
     let scene = read_scene(&d.join("obj.scene")).expect("converted scene parses");
-    assert_eq!(scene.triangles, expected(&g, true, false));
+    assert_eq!(corners(&scene), expected(&g, true, false));
     run(&["convert", "obj.scene", "back.obj"]);
     let again = parse_scene(
         b"1\namb: 0 0 0\nmesh file: back.obj\n",

@@ -44,7 +44,7 @@ fn classic_values_are_read_exactly() {
     assert_eq!(scene.spheres[0].material.kd.x, 0.44);
     // `nor: 0 0.9878    0.1556` -- runs of spaces.
     assert_eq!(scene.triangles[1].vertices[0].normal.y, 0.9878);
-    assert_eq!(scene.triangles[2].vertices[2].material.ks.x, 0.5);
+    assert_eq!(scene.material(&scene.triangles[2].vertices[2]).ks.x, 0.5);
 }
 
 const SPHERE: &str = "sphere pos: 0 0 -3 rad: 1 dif: 1 1 1 spe: 1 1 1 shi: 1\n";

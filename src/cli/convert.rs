@@ -116,12 +116,14 @@ fn model_as_scene(args: &ConvertArgs) -> Result<glint::scene::Scene, glint::Erro
     // The file's materials where it has them for every face; vertex
     // colours, where it has them, are the diffuse colour either way.
     let material = (mesh.materials.is_empty() || mesh.missing_material()).then_some(given);
-    Ok(glint::scene::Scene {
+    let mut scene = glint::scene::Scene {
         ambient: DVec3::splat(0.1),
-        triangles: mesh.triangles(material, |p| p, |n| n),
         lights: vec![glint::scene::Light::point(DVec3::ZERO, DVec3::ONE)],
         ..Default::default()
-    })
+    };
+    let mut ids = glint::scene::MaterialIds::default();
+    scene.triangles = mesh.triangles(material, |p| p, |n| n, |m| ids.id(&mut scene.materials, m));
+    Ok(scene)
 }
 
 /// R,G,B in f64, so that `--dif 0.3,...` is the scene file's 0.3.

@@ -109,11 +109,14 @@ impl<'a, R: Real> CpuScene<'a, R> {
                 .triangles
                 .iter()
                 .map(|t| {
-                    t.vertices.map(|x| VertexShading {
-                        normal: v(x.normal),
-                        kd: v(x.material.kd),
-                        ks: v(x.material.ks),
-                        shininess: R::from_f64(x.material.shininess),
+                    t.vertices.map(|x| {
+                        let m = scene.material(&x);
+                        VertexShading {
+                            normal: v(x.normal),
+                            kd: v(m.kd),
+                            ks: v(m.ks),
+                            shininess: R::from_f64(m.shininess),
+                        }
                     })
                 })
                 .collect(),

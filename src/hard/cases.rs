@@ -49,29 +49,39 @@ fn sphere(center: DVec3, radius: f64, m: Material) -> Sphere {
     }
 }
 
-fn tri(p: [DVec3; 3], n: [DVec3; 3], m: Material) -> Triangle {
-    Triangle {
-        vertices: [0, 1, 2].map(|i| Vertex {
-            position: p[i],
-            normal: n[i],
-            material: m,
-        }),
-        velocity: DVec3::ZERO,
+/// A triangle with its material, before `scene` numbers the materials.
+#[derive(Clone, Copy)]
+struct Tri {
+    t: Triangle,
+    m: Material,
+}
+
+fn tri(p: [DVec3; 3], n: [DVec3; 3], m: Material) -> Tri {
+    Tri {
+        t: Triangle {
+            vertices: [0, 1, 2].map(|i| Vertex {
+                position: p[i],
+                normal: n[i],
+                material: 0,
+            }),
+            velocity: DVec3::ZERO,
+        },
+        m,
     }
 }
 
-fn flat(p: [DVec3; 3], m: Material) -> Triangle {
+fn flat(p: [DVec3; 3], m: Material) -> Tri {
     let n = (p[1] - p[0]).cross(p[2] - p[0]).normalize_or_zero();
     tri(p, [n; 3], m)
 }
 
 /// Two triangles a-b-c, a-c-d sharing the diagonal a-c.
-fn quad(a: DVec3, b: DVec3, c: DVec3, d: DVec3, m: Material) -> [Triangle; 2] {
+fn quad(a: DVec3, b: DVec3, c: DVec3, d: DVec3, m: Material) -> [Tri; 2] {
     [flat([a, b, c], m), flat([a, c, d], m)]
 }
 
 /// A ground quad at height y spanning [x0, x1] x [z0, z1], facing up.
-fn ground(y: f64, x: [f64; 2], z: [f64; 2], m: Material) -> [Triangle; 2] {
+fn ground(y: f64, x: [f64; 2], z: [f64; 2], m: Material) -> [Tri; 2] {
     let p = |x: f64, z: f64| DVec3::new(x, y, z);
     quad(
         p(x[0], z[1]),
@@ -83,7 +93,7 @@ fn ground(y: f64, x: [f64; 2], z: [f64; 2], m: Material) -> [Triangle; 2] {
 }
 
 /// An axis-aligned box as 12 flat triangles, faces outward.
-fn cuboid(min: DVec3, max: DVec3, m: Material) -> Vec<Triangle> {
+fn cuboid(min: DVec3, max: DVec3, m: Material) -> Vec<Tri> {
     let c = |i: u32| {
         DVec3::new(
             if i & 1 == 0 { min.x } else { max.x },
@@ -118,7 +128,7 @@ fn icosphere(
     inward: bool,
     rng: &mut Rng,
     m: Material,
-) -> Vec<Triangle> {
+) -> Vec<Tri> {
     let t = (1.0 + 5f64.sqrt()) / 2.0;
     let mut verts: Vec<DVec3> = [
         (-1.0, t, 0.0),
@@ -206,19 +216,19 @@ fn pixel_dir(camera: &Camera, x: f64, y: f64) -> DVec3 {
     )
 }
 
-fn scene(
-    ambient: f64,
-    lights: Vec<Light>,
-    spheres: Vec<Sphere>,
-    triangles: Vec<Triangle>,
-) -> Scene {
-    Scene {
+fn scene(ambient: f64, lights: Vec<Light>, spheres: Vec<Sphere>, triangles: Vec<Tri>) -> Scene {
+    let mut scene = Scene {
         ambient: DVec3::splat(ambient),
         spheres,
-        triangles,
         lights,
         ..Scene::default()
+    };
+    for Tri { mut t, m } in triangles {
+        let id = scene.add_material(m);
+        t.vertices.iter_mut().for_each(|v| v.material = id);
+        scene.triangles.push(t);
     }
+    scene
 }
 
 fn case(name: &str, what: &str, scene: Scene, checks: &[Metric]) -> Case {

@@ -165,12 +165,14 @@ impl Mesh {
     /// vertex colours only) black with no highlight; a vertex colour, where
     /// the file has them, is the diffuse colour. Normals are the file's,
     /// else `smooth_normals`. Callers check that every face has a material
-    /// (`missing_material`).
+    /// (`missing_material`). `material_id` gives a material's index in the
+    /// scene's table (`Scene::add_material`, `MaterialIds`).
     pub fn triangles(
         &self,
         material: Option<Material>,
         place: impl Fn(DVec3) -> DVec3,
         turn: impl Fn(DVec3) -> DVec3,
+        mut material_id: impl FnMut(Material) -> u32,
     ) -> Vec<crate::scene::Triangle> {
         use crate::scene::{Triangle, Vertex};
         let smooth = if self.normals.is_empty() {
@@ -201,7 +203,7 @@ impl Mesh {
                     Vertex {
                         position: place(self.positions[p]),
                         normal: unit(turn(n)),
-                        material: m,
+                        material: material_id(m),
                     }
                 });
                 Triangle {

@@ -222,8 +222,8 @@ pub fn write_obj(scene: &Scene, mtl_name: &str) -> (String, String, ObjWritten) 
     let mut normals = 0usize;
     let mut current: Option<usize> = None;
     for t in &scene.triangles {
-        let m = t.vertices[0].material;
-        if t.vertices.iter().any(|v| v.material != m) {
+        let m = *scene.material(&t.vertices[0]);
+        if t.vertices.iter().any(|v| *scene.material(v) != m) {
             info.mixed_materials += 1;
         }
         let mkey = [m.kd.x, m.kd.y, m.kd.z, m.ks.x, m.ks.y, m.ks.z, m.shininess].map(f64::to_bits);

@@ -38,7 +38,9 @@ pub struct Sphere {
 pub struct Vertex {
     pub position: DVec3,
     pub normal: DVec3,
-    pub material: Material,
+    /// Index into `Scene::materials`: a table, because a material per
+    /// corner would be most of a big scene's memory (56 of 112 bytes).
+    pub material: u32,
 }
 
 #[derive(Clone, Copy, Debug, PartialEq)]
@@ -163,6 +165,8 @@ pub struct Scene {
     pub ambient: DVec3,
     pub spheres: Vec<Sphere>,
     pub triangles: Vec<Triangle>,
+    /// The triangles' materials, indexed by `Vertex::material`.
+    pub materials: Vec<Material>,
     pub lights: Vec<Light>,
     /// Render settings the file asks for (extensions; classic files have none).
     pub settings: Settings,
@@ -176,6 +180,32 @@ pub struct Scene {
     pub camera: Option<CameraSpec>,
     /// The `mesh` blocks, whose triangles are in `triangles` (extension).
     pub meshes: Vec<MeshInfo>,
+}
+
+/// Finds materials in a scene's table by their exact bits, adding the new
+/// ones: a parsed scene keeps one entry per distinct material.
+#[derive(Debug, Default)]
+pub struct MaterialIds {
+    index: std::collections::HashMap<[u64; 7], u32>,
+    /// Corners in a row mostly share a material: no hashing for those.
+    last: Option<([u64; 7], u32)>,
+}
+
+impl MaterialIds {
+    pub fn id(&mut self, materials: &mut Vec<Material>, m: Material) -> u32 {
+        let key = [m.kd.x, m.kd.y, m.kd.z, m.ks.x, m.ks.y, m.ks.z, m.shininess].map(f64::to_bits);
+        if let Some((k, id)) = self.last {
+            if k == key {
+                return id;
+            }
+        }
+        let id = *self.index.entry(key).or_insert_with(|| {
+            materials.push(m);
+            (materials.len() - 1) as u32
+        });
+        self.last = Some((key, id));
+        id
+    }
 }
 
 /// Warnings of one kind kept with their location; the rest are counted.
@@ -267,6 +297,21 @@ impl Triangle {
 }
 
 impl Scene {
+    /// The material of a triangle's corner.
+    pub fn material(&self, v: &Vertex) -> &Material {
+        &self.materials[v.material as usize]
+    }
+
+    /// The index of `m` in `materials`: the last entry when it is `m`,
+    /// else a new one. Builders that reuse materials in runs get a small
+    /// table; the parser finds repeats anywhere (`MaterialIds`).
+    pub fn add_material(&mut self, m: Material) -> u32 {
+        if self.materials.last() != Some(&m) {
+            self.materials.push(m);
+        }
+        (self.materials.len() - 1) as u32
+    }
+
     /// Bounds of all geometry (lights excluded); empty for an empty scene.
     pub fn bounds(&self) -> Bounds {
         let s = self.spheres.iter().map(Sphere::bounds);

@@ -33,8 +33,8 @@ use std::path::Path;
 use glam::DVec3;
 
 use super::{
-    Bounds, CameraSpec, Effects, Light, LightShape, Material, MeshInfo, Scene, Sphere, Triangle,
-    Vertex,
+    Bounds, CameraSpec, Effects, Light, LightShape, Material, MaterialIds, MeshInfo, Scene, Sphere,
+    Triangle, Vertex,
 };
 
 /// A `mesh` block's placement step.
@@ -232,6 +232,7 @@ impl Token<'_> {
 #[derive(Default)]
 struct State {
     scene: Scene,
+    material_ids: MaterialIds,
     /// Objects the first line declares; None before it is read.
     declared: Option<u64>,
     found: u64,
@@ -471,11 +472,7 @@ impl<'a> Parser<'a> {
         let mut vertices = [Vertex {
             position: DVec3::ZERO,
             normal: DVec3::ZERO,
-            material: Material {
-                kd: DVec3::ZERO,
-                ks: DVec3::ZERO,
-                shininess: 0.0,
-            },
+            material: 0,
         }; 3];
         for v in &mut vertices {
             self.tag("pos:")?;
@@ -507,7 +504,9 @@ impl<'a> Parser<'a> {
                 // Scaled first so that even 1e300 has a finite length.
                 v.normal = (v.normal / v.normal.abs().max_element()).normalize();
             }
-            v.material = self.material()?;
+            let m = self.material()?;
+            let state = &mut self.state;
+            v.material = state.material_ids.id(&mut state.scene.materials, m);
         }
         let velocity = self.velocity()?;
         Ok(Triangle { vertices, velocity })
@@ -650,10 +649,12 @@ impl<'a> Parser<'a> {
                 Some("add `dif: r g b  spe: r g b  shi: s` after the file name"),
             ));
         }
+        let state = &mut self.state;
         let triangles = mesh.triangles(
             material,
             |p| transforms.iter().fold(p, |p, t| t.point(p)),
             |n| transforms.iter().fold(n, |n, t| t.direction(n)),
+            |m| state.material_ids.id(&mut state.scene.materials, m),
         );
         let bounds = triangles
             .iter()

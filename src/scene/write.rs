@@ -92,7 +92,7 @@ pub fn to_classic_text(scene: &Scene) -> String {
         out.push_str("triangle\n");
         for v in &t.vertices {
             let _ = writeln!(out, "pos: {}\nnor: {}", v3(v.position), v3(v.normal));
-            material(&mut out, &v.material);
+            material(&mut out, scene.material(v));
         }
         velocity(&mut out, t.velocity);
     }
