@@ -10,7 +10,7 @@ use crate::cpu::Precision;
 use crate::framebuffer::Framebuffer;
 use crate::info::Features;
 use crate::methods::Methods;
-use crate::plot::{hex, Anchor, Plot};
+use crate::plot::Plot;
 use crate::scene::{Effects, Scene, Settings};
 
 /// Where a point renders.
@@ -364,101 +364,16 @@ pub fn markdown(rows: &[Measured], header: &str, target: f64) -> String {
 /// A log-log plot of RMSE against time, one line per knob and backend
 /// (`Plot::to_svg`, `Plot::to_image`).
 pub fn plot(rows: &[Measured], title: &str) -> Plot {
-    let (w, h) = (720.0, 480.0);
-    let (left, right, top, bottom) = (70.0, 230.0, 40.0, 50.0);
-    let pts: Vec<(f64, f64)> = rows
-        .iter()
-        .filter(|m| m.errors.rmse > 0.0)
-        .map(|m| (ms(m.time).max(1e-3).log10(), m.errors.rmse.log10()))
-        .collect();
-    let span = |f: fn(&(f64, f64)) -> f64| {
-        let lo = pts.iter().map(f).fold(f64::INFINITY, f64::min);
-        let hi = pts.iter().map(f).fold(f64::NEG_INFINITY, f64::max);
-        if lo.is_finite() {
-            (lo.floor(), hi.ceil().max(lo.floor() + 1.0))
-        } else {
-            (0.0, 1.0)
-        }
-    };
-    let (x0, x1) = span(|p| p.0);
-    let (y0, y1) = span(|p| p.1);
-    let px = |x: f64| left + (x - x0) / (x1 - x0) * (w - left - right);
-    let py = |y: f64| h - bottom - (y - y0) / (y1 - y0) * (h - top - bottom);
-    let mut p = Plot::new(w, h);
-    p.text([left, 22.0], title, 14.0, Anchor::Start, false);
-    let grid = [0xdd; 3];
-    for d in (x0 as i32)..=(x1 as i32) {
-        let x = px(f64::from(d));
-        p.line(&[[x, top], [x, h - bottom]], grid, 1.0);
-        p.text(
-            [x, h - bottom + 16.0],
-            &format!("1e{d}"),
-            12.0,
-            Anchor::Middle,
-            false,
-        );
-    }
-    for d in (y0 as i32)..=(y1 as i32) {
-        let y = py(f64::from(d));
-        p.line(&[[left, y], [w - right, y]], grid, 1.0);
-        p.text(
-            [left - 6.0, y + 4.0],
-            &format!("1e{d}"),
-            12.0,
-            Anchor::End,
-            false,
-        );
-    }
-    p.text(
-        [(left + w - right) / 2.0, h - 12.0],
-        "render time (ms)",
-        12.0,
-        Anchor::Middle,
-        false,
-    );
-    p.text(
-        [16.0, (top + h - bottom) / 2.0],
-        "RMSE",
-        12.0,
-        Anchor::Middle,
-        true,
-    );
-    let colours = [
-        "#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf",
-    ];
-    let mut series: Vec<(String, Vec<&Measured>)> = Vec::new();
+    let mut series: Vec<(String, Vec<[f64; 2]>)> = Vec::new();
     for m in rows.iter().filter(|m| m.errors.rmse > 0.0) {
         let name = format!("{} ({})", m.point.knob, m.point.target.backend());
+        let point = [ms(m.time).max(1e-3), m.errors.rmse];
         match series.iter_mut().find(|(n, _)| *n == name) {
-            Some((_, v)) => v.push(m),
-            None => series.push((name, vec![m])),
+            Some((_, v)) => v.push(point),
+            None => series.push((name, vec![point])),
         }
     }
-    for (i, (name, ms_)) in series.iter().enumerate() {
-        let colour = hex(colours[i % colours.len()]);
-        let coords: Vec<[f64; 2]> = ms_
-            .iter()
-            .map(|m| [px(ms(m.time).max(1e-3).log10()), py(m.errors.rmse.log10())])
-            .collect();
-        p.line(&coords, colour, 2.0);
-        for &c in &coords {
-            p.dot(c, 3.0, colour);
-        }
-        let ly = top + 10.0 + 18.0 * i as f64;
-        p.line(
-            &[[w - right + 10.0, ly], [w - right + 30.0, ly]],
-            colour,
-            2.0,
-        );
-        p.text(
-            [w - right + 36.0, ly + 4.0],
-            name,
-            12.0,
-            Anchor::Start,
-            false,
-        );
-    }
-    p
+    crate::plot::log_log(title, "render time (ms)", "RMSE", &series)
 }
 
 /// `plot` as SVG (text is drawn by whatever shows it).

@@ -304,6 +304,110 @@ fn draw_text(
     }
 }
 
+/// A log-log chart: one line with dots per named series of (x, y) points
+/// (positive; others are left out), decades on both axes, and a legend.
+pub fn log_log(
+    title: &str,
+    x_label: &str,
+    y_label: &str,
+    series: &[(String, Vec<[f64; 2]>)],
+) -> Plot {
+    let (w, h) = (720.0, 480.0);
+    let (left, right, top, bottom) = (70.0, 230.0, 40.0, 50.0);
+    let logs: Vec<(&str, Vec<[f64; 2]>)> = series
+        .iter()
+        .map(|(name, points)| {
+            let pts = points
+                .iter()
+                .filter(|p| p[0] > 0.0 && p[1] > 0.0)
+                .map(|p| [p[0].log10(), p[1].log10()])
+                .collect();
+            (name.as_str(), pts)
+        })
+        .filter(|(_, pts): &(&str, Vec<[f64; 2]>)| !pts.is_empty())
+        .collect();
+    let span = |axis: usize| {
+        let all = logs
+            .iter()
+            .flat_map(|(_, p)| p.iter().map(move |q| q[axis]));
+        let lo = all.clone().fold(f64::INFINITY, f64::min);
+        let hi = all.fold(f64::NEG_INFINITY, f64::max);
+        if lo.is_finite() {
+            (lo.floor(), hi.ceil().max(lo.floor() + 1.0))
+        } else {
+            (0.0, 1.0)
+        }
+    };
+    let (x0, x1) = span(0);
+    let (y0, y1) = span(1);
+    let px = |x: f64| left + (x - x0) / (x1 - x0) * (w - left - right);
+    let py = |y: f64| h - bottom - (y - y0) / (y1 - y0) * (h - top - bottom);
+    let mut p = Plot::new(w, h);
+    p.text([left, 22.0], title, 14.0, Anchor::Start, false);
+    let grid = [0xdd; 3];
+    for d in (x0 as i32)..=(x1 as i32) {
+        let x = px(f64::from(d));
+        p.line(&[[x, top], [x, h - bottom]], grid, 1.0);
+        p.text(
+            [x, h - bottom + 16.0],
+            &format!("1e{d}"),
+            12.0,
+            Anchor::Middle,
+            false,
+        );
+    }
+    for d in (y0 as i32)..=(y1 as i32) {
+        let y = py(f64::from(d));
+        p.line(&[[left, y], [w - right, y]], grid, 1.0);
+        p.text(
+            [left - 6.0, y + 4.0],
+            &format!("1e{d}"),
+            12.0,
+            Anchor::End,
+            false,
+        );
+    }
+    p.text(
+        [(left + w - right) / 2.0, h - 12.0],
+        x_label,
+        12.0,
+        Anchor::Middle,
+        false,
+    );
+    p.text(
+        [16.0, (top + h - bottom) / 2.0],
+        y_label,
+        12.0,
+        Anchor::Middle,
+        true,
+    );
+    let colours = [
+        "#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf",
+    ];
+    for (i, (name, pts)) in logs.iter().enumerate() {
+        let colour = hex(colours[i % colours.len()]);
+        let coords: Vec<[f64; 2]> = pts.iter().map(|q| [px(q[0]), py(q[1])]).collect();
+        p.line(&coords, colour, 2.0);
+        for &c in &coords {
+            p.dot(c, 3.0, colour);
+        }
+        let ly = top + 10.0 + 18.0 * i as f64;
+        p.line(
+            &[[w - right + 10.0, ly], [w - right + 30.0, ly]],
+            colour,
+            2.0,
+        );
+        p.text(
+            [w - right + 36.0, ly + 4.0],
+            name,
+            12.0,
+            Anchor::Start,
+            false,
+        );
+    }
+    p
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

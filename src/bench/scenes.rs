@@ -161,6 +161,34 @@ fn ms(s: Option<Stat>) -> f64 {
 }
 
 impl BenchReport {
+    /// Render time against primitive count, log-log, one line per backend
+    /// (`glint bench --plot`): how each one's cost grows with the scene.
+    pub fn plot(&self) -> crate::plot::Plot {
+        type Column = fn(&SceneResult) -> Option<Stat>;
+        let columns: [(&str, Column); 3] = [
+            ("GPU", |s| s.gpu),
+            ("CPU f32", |s| s.cpu_f32),
+            ("CPU f64", |s| s.cpu_f64),
+        ];
+        let series: Vec<(String, Vec<[f64; 2]>)> = columns
+            .iter()
+            .map(|(name, column)| {
+                let mut points: Vec<[f64; 2]> = self
+                    .scenes
+                    .iter()
+                    .filter_map(|s| column(s).map(|t| [s.primitives as f64, ms(Some(t))]))
+                    .collect();
+                points.sort_by(|a, b| a[0].total_cmp(&b[0]));
+                (name.to_string(), points)
+            })
+            .collect();
+        let title = format!(
+            "render time against primitives, {}x{}, median of {}",
+            self.width, self.height, self.repeat
+        );
+        crate::plot::log_log(&title, "primitives", "render time (ms)", &series)
+    }
+
     /// A Markdown table of medians (min-max in brackets), in milliseconds,
     /// with the rays per second each median gives.
     pub fn to_markdown(&self) -> String {

@@ -1,6 +1,7 @@
 use std::path::PathBuf;
 use std::process::ExitCode;
 
+use anyhow::Context as _;
 use clap::{Args, Subcommand};
 use glint::bench::{default_scenes, run as run_bench, BenchOptions};
 use glint::gpu::DeviceSelector;
@@ -100,6 +101,10 @@ pub struct SceneArgs {
     /// Vulkan device by index or name (see `glint devices`).
     #[arg(long)]
     device: Option<String>,
+    /// Also draw render time against primitive count, one line per
+    /// backend, into this file (.svg, or .png drawn by glint itself).
+    #[arg(long, value_name = "FILE")]
+    plot: Option<PathBuf>,
 }
 
 pub fn run(args: BenchArgs) -> anyhow::Result<ExitCode> {
@@ -184,7 +189,33 @@ fn run_scenes(args: SceneArgs) -> anyhow::Result<ExitCode> {
         cpu_f64: !args.no_cpu && args.f64,
         device: args.device.as_deref().map(DeviceSelector::parse),
     };
+    if let Some(plot) = &args.plot {
+        // Before the work, not after it: a bad path fails in a second.
+        let ext = plot
+            .extension()
+            .map(|e| e.to_string_lossy().to_ascii_lowercase());
+        if !matches!(ext.as_deref(), Some("svg" | "png")) {
+            return Err(glint::Error::InvalidOption(format!(
+                "--plot {}: name an .svg or .png file",
+                plot.display()
+            ))
+            .into());
+        }
+        glint::framebuffer::check_writable(plot)?;
+    }
     let report = run_bench(&options, &mut |line| eprintln!("{line}"))?;
     println!("{}", report.to_markdown());
+    if let Some(path) = &args.plot {
+        if path
+            .extension()
+            .is_some_and(|e| e.eq_ignore_ascii_case("svg"))
+        {
+            std::fs::write(path, report.plot().to_svg())
+                .with_context(|| format!("cannot write {}", path.display()))?;
+        } else {
+            glint::framebuffer::write_image(&report.plot().to_image(2.0), path, 95)?;
+        }
+        eprintln!("wrote {}", path.display());
+    }
     Ok(ExitCode::SUCCESS)
 }

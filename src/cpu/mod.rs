@@ -5,6 +5,7 @@
 mod real;
 pub mod sample;
 pub mod trace;
+pub mod wide;
 
 pub use real::Real;
 

@@ -6,6 +6,9 @@ use std::ops::{Add, Div, Index, Mul, Neg, Sub};
 
 use glam::{DVec3, Vec3};
 
+use super::trace::Ray;
+use super::wide::Node4;
+
 pub trait Real:
     Copy
     + Send
@@ -87,11 +90,27 @@ pub trait Real:
     /// Moves `p` off its surface along `n` by whole ulps (Ray Tracing Gems ch. 6).
     /// `scale`: per-axis magnitude of the coordinates `p` came from.
     fn offset_ray(p: Self::V3, n: Self::V3, scale: Self::V3) -> Self::V3;
+
+    /// `hit_aabb` on the four boxes of a collapsed node: a bit per lane
+    /// hit, and each lane's entry t. SIMD lanes for f32.
+    fn hit_boxes(ray: &Ray<Self>, node: &Node4, t_max: Self) -> (u32, [Self; 4]) {
+        let mut mask = 0;
+        let mut t = [Self::T_INF; 4];
+        for (lane, t) in t.iter_mut().enumerate() {
+            let (lo, hi) = node.lane_box(lane);
+            *t = super::trace::hit_aabb(ray, lo, hi, t_max);
+            if *t != Self::T_INF {
+                mask |= 1 << lane;
+            }
+        }
+        (mask, t)
+    }
 }
 
 macro_rules! impl_real {
-    ($t:ty, $v:ty, $i:ty, $eps_ratio:expr) => {
+    ($t:ty, $v:ty, $i:ty, $eps_ratio:expr $(, $extra:item)*) => {
         impl Real for $t {
+            $($extra)*
             type V3 = $v;
             const ZERO: Self = 0.0;
             const ONE: Self = 1.0;
@@ -210,5 +229,14 @@ macro_rules! impl_real {
     };
 }
 
-impl_real!(f32, Vec3, i32, 1.0);
+impl_real!(
+    f32,
+    Vec3,
+    i32,
+    1.0,
+    #[inline(always)]
+    fn hit_boxes(ray: &Ray<f32>, node: &Node4, t_max: f32) -> (u32, [f32; 4]) {
+        super::wide::hit_boxes_f32(ray.origin, ray.inv_dir, node, t_max, Self::BOX_T_SCALE)
+    }
+);
 impl_real!(f64, DVec3, i64, (f64::EPSILON / f32::EPSILON as f64));

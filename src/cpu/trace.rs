@@ -6,8 +6,7 @@ use crate::bvh::Bvh;
 use crate::camera::Camera;
 use crate::info::Features;
 use crate::layout::{
-    GpuBvhNode, FLAG_NONFINITE_COLOR, FLAG_NONFINITE_SURFACE, LIGHT_POINT, LIGHT_RECT,
-    LIGHT_SPHERE, SPHERE_BIT,
+    FLAG_NONFINITE_COLOR, FLAG_NONFINITE_SURFACE, LIGHT_POINT, LIGHT_RECT, LIGHT_SPHERE, SPHERE_BIT,
 };
 use crate::methods::Methods;
 use crate::scene::{LightShape, Scene};
@@ -16,6 +15,7 @@ use super::real::Real;
 use super::sample::{
     rng, stratified_2d, unit_float, ROTATION, STREAM_LIGHT, STREAM_PIXEL, STREAM_TIME,
 };
+use super::wide::{self, Node4};
 use super::CpuOptions;
 
 pub const NO_HIT: u32 = u32::MAX;
@@ -57,8 +57,12 @@ pub struct CpuScene<'a, R: Real> {
     pub triangle_velocity: Vec<R::V3>,
     pub shading: Vec<[VertexShading<R>; 3]>,
     pub lights: Vec<Light<R>>,
-    pub nodes: &'a [GpuBvhNode],
+    /// The BVH collapsed to four children a node (`wide`).
+    pub nodes: Vec<Node4>,
     pub prim_refs: &'a [u32],
+    /// Each primitive reference's triangle corners, in leaf order, so a
+    /// leaf's triangles are read in a row, not looked up one by one.
+    pub leaf_triangles: Vec<[R::V3; 3]>,
     /// Per light, the surfaces through it (`lights_on_surfaces`).
     pub surfaces_at_lights: &'a [Vec<u32>],
     pub ambient: R::V3,
@@ -86,6 +90,15 @@ impl<'a, R: Real> CpuScene<'a, R> {
         let effects = &options.effects;
         let features = Features::of(scene, effects);
         let half_extent = camera.half_extent.map(R::from_f64);
+        let zero = R::v3(R::ZERO, R::ZERO, R::ZERO);
+        let leaf_triangles = bvh
+            .prim_refs
+            .iter()
+            .map(|&r| match scene.triangles.get(r as usize) {
+                Some(t) if r & SPHERE_BIT == 0 => t.vertices.map(|x| v(x.position)),
+                _ => [zero; 3],
+            })
+            .collect();
         CpuScene {
             spheres: scene
                 .spheres
@@ -145,7 +158,8 @@ impl<'a, R: Real> CpuScene<'a, R> {
                     }
                 })
                 .collect(),
-            nodes: &bvh.nodes,
+            nodes: super::wide::collapse(bvh),
+            leaf_triangles,
             surfaces_at_lights: &bvh.surfaces_at_lights,
             prim_refs: &bvh.prim_refs,
             ambient: v(scene.ambient),
@@ -431,19 +445,22 @@ pub fn hit_triangle<R: Real>(ray: &Ray<R>, tri: &[R::V3; 3], t_max: R) -> (R, R,
     (t_scaled * inv_det, v * inv_det, w * inv_det)
 }
 
+/// The primitives `prim_refs[first..first + count]`: true when an any-hit
+/// query found its hit.
+#[allow(clippy::too_many_arguments)]
 fn hit_leaf<R: Real>(
     scene: &CpuScene<R>,
     ray: &Ray<R>,
-    node: &GpuBvhNode,
+    first: usize,
+    count: usize,
     best: &mut Hit<R>,
     any_hit: bool,
     skip: &[u32],
     graze: R,
 ) -> bool {
-    let first = node.right_or_first as usize;
     // The shader branches on ROBUST inside hit_sphere and hit_triangle.
     let robust = scene.methods == Methods::Robust;
-    for &prim in &scene.prim_refs[first..first + node.count as usize] {
+    for (k, &prim) in scene.prim_refs[first..first + count].iter().enumerate() {
         let index = (prim & !SPHERE_BIT) as usize;
         if any_hit && skip.contains(&prim) {
             // A surface through the light: triangles never block it, a
@@ -487,7 +504,11 @@ fn hit_leaf<R: Real>(
                 }
             }
         } else {
-            let tri = &triangle_at(scene, index, ray.time);
+            let tri = &if scene.motion_blur {
+                triangle_at(scene, index, ray.time)
+            } else {
+                scene.leaf_triangles[first + k]
+            };
             let (t, b1, b2) = if robust {
                 hit_triangle(ray, tri, best.t)
             } else {
@@ -506,6 +527,11 @@ fn hit_leaf<R: Real>(
 
 /// With `any_hit`, `skip` names the surfaces through the light the ray ends
 /// at and `graze` is the height of the ray's grazing band (`graze_band`).
+///
+/// Nearest child first: of the lanes a node's test hits, the nearest is
+/// entered next and the others wait on the stack with their entry t, to be
+/// dropped unopened if a hit closer than that has been found meanwhile
+/// (the box test they would fail).
 pub fn traverse<R: Real>(
     scene: &CpuScene<R>,
     ray: &Ray<R>,
@@ -520,48 +546,83 @@ pub fn traverse<R: Real>(
         b1: R::ZERO,
         b2: R::ZERO,
     };
-    let nodes = scene.nodes;
-    if nodes.is_empty() || hit_aabb(ray, nodes[0].min, nodes[0].max, t_max) == R::T_INF {
+    if scene.nodes.is_empty() {
         return best;
     }
-    let mut stack = [0usize; crate::layout::BVH_MAX_DEPTH as usize];
-    let mut sp = 0;
-    let mut index = 0;
-    loop {
-        let node = &nodes[index];
-        if node.count > 0 {
-            if hit_leaf(scene, ray, node, &mut best, any_hit, skip, graze) {
-                return best;
-            }
-            if sp == 0 {
-                break;
-            }
-            sp -= 1;
-            index = stack[sp];
+    STACK.with_borrow_mut(|stack| {
+        stack.clear();
+        stack.push((0, 0.0));
+        traverse_from(scene, ray, &mut best, any_hit, skip, graze, stack);
+    });
+    best
+}
+
+thread_local! {
+    /// `traverse`'s stack: nodes to visit with their entry t (exact in f64
+    /// for both precisions). Kept per thread, because a fresh array per ray
+    /// cost a tenth of the render in clearing it.
+    static STACK: std::cell::RefCell<Vec<(u32, f64)>> =
+        std::cell::RefCell::new(Vec::with_capacity(wide::STACK));
+}
+
+#[allow(clippy::too_many_arguments)]
+fn traverse_from<R: Real>(
+    scene: &CpuScene<R>,
+    ray: &Ray<R>,
+    best: &mut Hit<R>,
+    any_hit: bool,
+    skip: &[u32],
+    graze: R,
+    stack: &mut Vec<(u32, f64)>,
+) {
+    while let Some((entry, t_entry)) = stack.pop() {
+        if t_entry > (best.t * R::BOX_T_SCALE).to_f64() {
             continue;
         }
-        let left = index + 1;
-        let right = node.right_or_first as usize;
-        let t_left = hit_aabb(ray, nodes[left].min, nodes[left].max, best.t);
-        let t_right = hit_aabb(ray, nodes[right].min, nodes[right].max, best.t);
-        if t_left == R::T_INF && t_right == R::T_INF {
-            if sp == 0 {
-                break;
+        let node = &scene.nodes[entry as usize];
+        let (mut mask, t) = R::hit_boxes(ray, node, best.t);
+        // Hit lanes onto the stack, farthest first, so the nearest is
+        // popped next; the order is fixed by t, then lane.
+        let mut lanes = [0usize; 4];
+        let mut n = 0;
+        while mask != 0 {
+            let lane = mask.trailing_zeros() as usize;
+            mask &= mask - 1;
+            // A ray with a NaN direction passes every box test, even an
+            // unused lane's (and then hits no primitive).
+            if node.child[lane] == wide::EMPTY {
+                continue;
             }
-            sp -= 1;
-            index = stack[sp];
-        } else if t_right == R::T_INF {
-            index = left;
-        } else if t_left == R::T_INF {
-            index = right;
-        } else {
-            let left_first = t_left <= t_right;
-            index = if left_first { left } else { right };
-            stack[sp] = if left_first { right } else { left };
-            sp += 1;
+            let mut i = n;
+            while i > 0 && t[lanes[i - 1]] < t[lane] {
+                lanes[i] = lanes[i - 1];
+                i -= 1;
+            }
+            lanes[i] = lane;
+            n += 1;
+        }
+        // Leaves are tested as they come, nearest first; nodes are stacked.
+        for &lane in lanes[..n].iter().rev() {
+            let child = node.child[lane];
+            if child & wide::LEAF == 0 {
+                continue;
+            }
+            if t[lane] > best.t * R::BOX_T_SCALE {
+                continue;
+            }
+            let first = (child & !wide::LEAF) as usize;
+            let count = node.count[lane] as usize;
+            if hit_leaf(scene, ray, first, count, best, any_hit, skip, graze) {
+                return;
+            }
+        }
+        for &lane in &lanes[..n] {
+            let child = node.child[lane];
+            if child & wide::LEAF == 0 {
+                stack.push((child, t[lane].to_f64()));
+            }
         }
     }
-    best
 }
 
 pub fn trace_closest<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>) -> Hit<R> {
