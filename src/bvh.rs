@@ -169,7 +169,8 @@ impl Bvh {
             ..Bvh::default()
         };
         if !prims.is_empty() {
-            let (nodes, depth) = build_tree(&mut prims, 0, 0, parallel_min);
+            let extent = Extent::of(&prims);
+            let (nodes, depth) = build_tree(&mut prims, extent, 0, 0, parallel_min);
             bvh.nodes = nodes;
             bvh.depth = depth;
         }
@@ -194,24 +195,24 @@ const PARALLEL_MIN: usize = 4096;
 /// relative to it, and its depth below `depth`.
 fn build_tree(
     prims: &mut [Prim],
+    extent: Extent,
     first: usize,
     depth: u32,
     parallel_min: usize,
 ) -> (Vec<GpuBvhNode>, u32) {
     if depth >= PARALLEL_LEVELS || prims.len() < 2 * parallel_min {
         let mut nodes = Vec::with_capacity(2 * prims.len());
-        let deepest = build_in_place(&mut nodes, prims, first, depth);
+        let deepest = build_in_place(&mut nodes, prims, extent, first, depth);
         return (nodes, deepest);
     }
-    let bounds = prims.iter().fold(Bounds::EMPTY, |b, p| b.union(p.bounds));
-    let leaf = node(bounds, first as u32, prims.len() as u32);
-    let Some(mid) = split(prims, bounds) else {
+    let leaf = node(extent.bounds, first as u32, prims.len() as u32);
+    let Some((mid, [left_extent, right_extent])) = split(prims, extent) else {
         return (vec![leaf], depth);
     };
     let (left, right) = prims.split_at_mut(mid);
     let ((mut nodes, left_depth), (right_nodes, right_depth)) = rayon::join(
-        || build_tree(left, first, depth + 1, parallel_min),
-        || build_tree(right, first + mid, depth + 1, parallel_min),
+        || build_tree(left, left_extent, first, depth + 1, parallel_min),
+        || build_tree(right, right_extent, first + mid, depth + 1, parallel_min),
     );
     // Parent, then the left subtree, then the right: shift each subtree's
     // child indices by where it lands.
@@ -234,22 +235,22 @@ fn build_tree(
 fn build_in_place(
     nodes: &mut Vec<GpuBvhNode>,
     prims: &mut [Prim],
+    extent: Extent,
     first: usize,
     depth: u32,
 ) -> u32 {
-    let bounds = prims.iter().fold(Bounds::EMPTY, |b, p| b.union(p.bounds));
     let index = nodes.len();
-    nodes.push(node(bounds, first as u32, prims.len() as u32));
+    nodes.push(node(extent.bounds, first as u32, prims.len() as u32));
     if prims.len() <= 1 || depth + 1 >= BVH_MAX_DEPTH {
         return depth;
     }
-    let Some(mid) = split(prims, bounds) else {
+    let Some((mid, [left_extent, right_extent])) = split(prims, extent) else {
         return depth;
     };
     let (left, right) = prims.split_at_mut(mid);
-    let left_depth = build_in_place(nodes, left, first, depth + 1);
+    let left_depth = build_in_place(nodes, left, left_extent, first, depth + 1);
     let right_index = nodes.len();
-    let right_depth = build_in_place(nodes, right, first + mid, depth + 1);
+    let right_depth = build_in_place(nodes, right, right_extent, first + mid, depth + 1);
     nodes[index].right_or_first = right_index as u32;
     nodes[index].count = 0;
     left_depth.max(right_depth)
@@ -265,9 +266,47 @@ fn shift(nodes: &mut [GpuBvhNode], by: u32) {
     }
 }
 
+/// A node's box and the box of its primitives' centroids (where the SAH
+/// bins go).
+#[derive(Clone, Copy)]
+struct Extent {
+    bounds: Bounds,
+    centroids: Bounds,
+}
+
+impl Extent {
+    const EMPTY: Extent = Extent {
+        bounds: Bounds::EMPTY,
+        centroids: Bounds::EMPTY,
+    };
+
+    fn add(self, p: &Prim) -> Extent {
+        Extent {
+            bounds: self.bounds.union(p.bounds),
+            centroids: self.centroids.grow(p.centroid),
+        }
+    }
+
+    fn union(self, o: Extent) -> Extent {
+        Extent {
+            bounds: self.bounds.union(o.bounds),
+            centroids: self.centroids.union(o.centroids),
+        }
+    }
+
+    fn of(prims: &[Prim]) -> Extent {
+        prims.iter().fold(Extent::EMPTY, Extent::add)
+    }
+}
+
 /// Chooses a binned-SAH split and partitions `prims`; `None` makes a leaf.
-fn split(prims: &mut [Prim], bounds: Bounds) -> Option<usize> {
-    let centroids = prims.iter().fold(Bounds::EMPTY, |b, p| b.grow(p.centroid));
+/// Also returns both halves' extents: for a SAH split they are the unions
+/// of the bins on either side (min and max are exact, so the same boxes a
+/// pass over the halves would give), so no node folds over its primitives
+/// again.
+fn split(prims: &mut [Prim], extent: Extent) -> Option<(usize, [Extent; 2])> {
+    let bounds = extent.bounds;
+    let centroids = extent.centroids;
     let extent = centroids.max - centroids.min;
     let axis = extent.max_position();
     let (lo, width) = (centroids.min[axis], extent[axis]);
@@ -279,23 +318,23 @@ fn split(prims: &mut [Prim], bounds: Bounds) -> Option<usize> {
         }
     };
     let mut best: Option<(f64, usize)> = None;
+    let mut bins = [(Extent::EMPTY, 0usize); BIN_COUNT];
     if width > 0.0 {
-        let mut bins = [(Bounds::EMPTY, 0usize); BIN_COUNT];
         for p in prims.iter() {
             let b = &mut bins[bin_of(p.centroid)];
-            b.0 = b.0.union(p.bounds);
+            b.0 = b.0.add(p);
             b.1 += 1;
         }
         // Sweep from the right once, then from the left, pricing each split plane.
         let mut right_area = [0.0; BIN_COUNT];
         let mut acc = (Bounds::EMPTY, 0usize);
         for i in (1..BIN_COUNT).rev() {
-            acc = (acc.0.union(bins[i].0), acc.1 + bins[i].1);
+            acc = (acc.0.union(bins[i].0.bounds), acc.1 + bins[i].1);
             right_area[i] = acc.0.surface_area() * acc.1 as f64;
         }
         let mut acc = (Bounds::EMPTY, 0usize);
         for i in 0..BIN_COUNT - 1 {
-            acc = (acc.0.union(bins[i].0), acc.1 + bins[i].1);
+            acc = (acc.0.union(bins[i].0.bounds), acc.1 + bins[i].1);
             let cost = acc.0.surface_area() * acc.1 as f64 + right_area[i + 1];
             if acc.1 > 0 && acc.1 < prims.len() && best.is_none_or(|(c, _)| cost < c) {
                 best = Some((cost, i));
@@ -310,11 +349,18 @@ fn split(prims: &mut [Prim], bounds: Bounds) -> Option<usize> {
                 || area <= 0.0
                 || TRAVERSAL_COST + INTERSECT_COST * cost / area < leaf_cost =>
         {
-            Some(partition(prims, |p| bin_of(p.centroid) <= plane))
+            let mid = partition(prims, |p| bin_of(p.centroid) <= plane);
+            let side = |range: std::ops::Range<usize>| {
+                bins[range].iter().fold(Extent::EMPTY, |e, b| e.union(b.0))
+            };
+            Some((mid, [side(0..plane + 1), side(plane + 1..BIN_COUNT)]))
         }
         // All centroids coincide (or no plane separates them): split by count so
         // that oversized leaves cannot happen, unless the leaf is already small.
-        _ if prims.len() > MAX_LEAF_SIZE => Some(prims.len() / 2),
+        _ if prims.len() > MAX_LEAF_SIZE => {
+            let mid = prims.len() / 2;
+            Some((mid, [Extent::of(&prims[..mid]), Extent::of(&prims[mid..])]))
+        }
         _ => None,
     }
 }
