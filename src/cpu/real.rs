@@ -7,7 +7,7 @@ use std::ops::{Add, Div, Index, Mul, Neg, Sub};
 use glam::{DVec3, Vec3};
 
 use super::trace::Ray;
-use super::wide::Node4;
+use super::wide::{LeafBlock, Node4};
 
 pub trait Real:
     Copy
@@ -104,6 +104,18 @@ pub trait Real:
             }
         }
         (mask, t)
+    }
+
+    /// Whether `hit_block` tests a leaf's triangles together.
+    const SIMD_LEAVES: bool = false;
+
+    /// `wide::hit_block_f32` where `SIMD_LEAVES`; never called otherwise.
+    fn hit_block(
+        _ray: &Ray<Self>,
+        _block: &LeafBlock,
+        _t_max: Self,
+    ) -> Option<(usize, Self, Self, Self)> {
+        None
     }
 }
 
@@ -237,6 +249,11 @@ impl_real!(
     #[inline(always)]
     fn hit_boxes(ray: &Ray<f32>, node: &Node4, t_max: f32) -> (u32, [f32; 4]) {
         super::wide::hit_boxes_f32(ray.origin, ray.inv_dir, node, t_max, Self::BOX_T_SCALE)
+    },
+    const SIMD_LEAVES: bool = true;,
+    #[inline(always)]
+    fn hit_block(ray: &Ray<f32>, block: &LeafBlock, t_max: f32) -> Option<(usize, f32, f32, f32)> {
+        super::wide::hit_block_f32(ray, block, t_max)
     }
 );
 impl_real!(f64, DVec3, i64, (f64::EPSILON / f32::EPSILON as f64));

@@ -15,7 +15,7 @@ use super::real::Real;
 use super::sample::{
     rng, stratified_2d, unit_float, ROTATION, STREAM_LIGHT, STREAM_PIXEL, STREAM_TIME,
 };
-use super::wide::{self, Node4};
+use super::wide::{self, LeafBlock, WideBvh};
 use super::CpuOptions;
 
 pub const NO_HIT: u32 = u32::MAX;
@@ -57,12 +57,10 @@ pub struct CpuScene<'a, R: Real> {
     pub triangle_velocity: Vec<R::V3>,
     pub shading: Vec<[VertexShading<R>; 3]>,
     pub lights: Vec<Light<R>>,
-    /// The BVH collapsed to four children a node (`wide`).
-    pub nodes: Vec<Node4>,
+    /// The BVH collapsed to four children a node, with its leaves'
+    /// triangles in blocks for the SIMD test (`wide`).
+    pub wide: WideBvh,
     pub prim_refs: &'a [u32],
-    /// Each primitive reference's triangle corners, in leaf order, so a
-    /// leaf's triangles are read in a row, not looked up one by one.
-    pub leaf_triangles: Vec<[R::V3; 3]>,
     /// Per light, the surfaces through it (`lights_on_surfaces`).
     pub surfaces_at_lights: &'a [Vec<u32>],
     pub ambient: R::V3,
@@ -90,15 +88,14 @@ impl<'a, R: Real> CpuScene<'a, R> {
         let effects = &options.effects;
         let features = Features::of(scene, effects);
         let half_extent = camera.half_extent.map(R::from_f64);
-        let zero = R::v3(R::ZERO, R::ZERO, R::ZERO);
-        let leaf_triangles = bvh
-            .prim_refs
-            .iter()
-            .map(|&r| match scene.triangles.get(r as usize) {
-                Some(t) if r & SPHERE_BIT == 0 => t.vertices.map(|x| v(x.position)),
-                _ => [zero; 3],
-            })
-            .collect();
+        // The f32 corners are the f32 path's own (`v` rounds the same way).
+        let corners = |r: u32| {
+            let t = scene
+                .triangles
+                .get(r as usize)
+                .filter(|_| r & SPHERE_BIT == 0)?;
+            Some(t.vertices.map(|x| x.position.as_vec3().to_array()))
+        };
         CpuScene {
             spheres: scene
                 .spheres
@@ -158,8 +155,7 @@ impl<'a, R: Real> CpuScene<'a, R> {
                     }
                 })
                 .collect(),
-            nodes: super::wide::collapse(bvh),
-            leaf_triangles,
+            wide: super::wide::collapse(bvh, corners),
             surfaces_at_lights: &bvh.surfaces_at_lights,
             prim_refs: &bvh.prim_refs,
             ambient: v(scene.ambient),
@@ -445,14 +441,13 @@ pub fn hit_triangle<R: Real>(ray: &Ray<R>, tri: &[R::V3; 3], t_max: R) -> (R, R,
     (t_scaled * inv_det, v * inv_det, w * inv_det)
 }
 
-/// The primitives `prim_refs[first..first + count]`: true when an any-hit
-/// query found its hit.
-#[allow(clippy::too_many_arguments)]
+/// A leaf's primitives: true when an any-hit query found its hit. Up to
+/// four static triangles meet the robust test in SIMD lanes where `R` has
+/// them; the rest one by one.
 fn hit_leaf<R: Real>(
     scene: &CpuScene<R>,
     ray: &Ray<R>,
-    first: usize,
-    count: usize,
+    leaf: &LeafBlock,
     best: &mut Hit<R>,
     any_hit: bool,
     skip: &[u32],
@@ -460,7 +455,16 @@ fn hit_leaf<R: Real>(
 ) -> bool {
     // The shader branches on ROBUST inside hit_sphere and hit_triangle.
     let robust = scene.methods == Methods::Robust;
-    for (k, &prim) in scene.prim_refs[first..first + count].iter().enumerate() {
+    let (first, count) = (leaf.first as usize, leaf.count as usize);
+    if R::SIMD_LEAVES && leaf.simd && robust && !scene.motion_blur && skip.is_empty() {
+        if let Some((lane, t, b1, b2)) = R::hit_block(ray, leaf, best.t) {
+            let prim = scene.prim_refs[first + lane];
+            *best = Hit { t, prim, b1, b2 };
+            return any_hit;
+        }
+        return false;
+    }
+    for &prim in &scene.prim_refs[first..first + count] {
         let index = (prim & !SPHERE_BIT) as usize;
         if any_hit && skip.contains(&prim) {
             // A surface through the light: triangles never block it, a
@@ -504,11 +508,7 @@ fn hit_leaf<R: Real>(
                 }
             }
         } else {
-            let tri = &if scene.motion_blur {
-                triangle_at(scene, index, ray.time)
-            } else {
-                scene.leaf_triangles[first + k]
-            };
+            let tri = &triangle_at(scene, index, ray.time);
             let (t, b1, b2) = if robust {
                 hit_triangle(ray, tri, best.t)
             } else {
@@ -546,7 +546,7 @@ pub fn traverse<R: Real>(
         b1: R::ZERO,
         b2: R::ZERO,
     };
-    if scene.nodes.is_empty() {
+    if scene.wide.nodes.is_empty() {
         return best;
     }
     STACK.with_borrow_mut(|stack| {
@@ -579,7 +579,7 @@ fn traverse_from<R: Real>(
         if t_entry > (best.t * R::BOX_T_SCALE).to_f64() {
             continue;
         }
-        let node = &scene.nodes[entry as usize];
+        let node = &scene.wide.nodes[entry as usize];
         let (mut mask, t) = R::hit_boxes(ray, node, best.t);
         // Hit lanes onto the stack, farthest first, so the nearest is
         // popped next; the order is fixed by t, then lane.
@@ -610,9 +610,8 @@ fn traverse_from<R: Real>(
             if t[lane] > best.t * R::BOX_T_SCALE {
                 continue;
             }
-            let first = (child & !wide::LEAF) as usize;
-            let count = node.count[lane] as usize;
-            if hit_leaf(scene, ray, first, count, best, any_hit, skip, graze) {
+            let leaf = &scene.wide.leaves[(child & !wide::LEAF) as usize];
+            if hit_leaf(scene, ray, leaf, best, any_hit, skip, graze) {
                 return;
             }
         }

@@ -14,22 +14,40 @@ use crate::bvh::Bvh;
 use crate::layout::GpuBvhNode;
 
 /// `Node4::child` of a lane that holds a leaf: this bit plus the index of
-/// its first primitive reference.
+/// its `LeafBlock`.
 pub const LEAF: u32 = 1 << 31;
 /// `Node4::child` of an unused lane (its box is at +infinity, so no ray
 /// hits it; see `Node4::EMPTY`).
 pub const EMPTY: u32 = u32::MAX;
 
 /// Four children: their boxes by axis and lane (`lo[axis][lane]`), then per
-/// lane a node index, `LEAF | first`, or `EMPTY`, and a leaf's primitive
-/// count. 128 bytes, two cache lines.
+/// lane a node index, `LEAF | block`, or `EMPTY`. 112 bytes.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C)]
 pub struct Node4 {
     pub lo: [Vec4; 3],
     pub hi: [Vec4; 3],
     pub child: [u32; 4],
-    pub count: [u32; 4],
+}
+
+/// A leaf: its primitive references `prim_refs[first..first + count]`,
+/// and, when they are up to four triangles (`simd`), their corners by
+/// axis, corner and lane (`p[axis][corner][lane]`, f32), so that one SIMD
+/// watertight test meets all four (`hit_block_f32`).
+#[derive(Clone, Copy, Debug, PartialEq)]
+#[repr(C)]
+pub struct LeafBlock {
+    pub p: [[Vec4; 3]; 3],
+    pub first: u32,
+    pub count: u32,
+    pub simd: bool,
+}
+
+/// The collapsed tree: nodes (root first) and their leaves.
+#[derive(Clone, Debug, Default)]
+pub struct WideBvh {
+    pub nodes: Vec<Node4>,
+    pub leaves: Vec<LeafBlock>,
 }
 
 impl Node4 {
@@ -40,7 +58,6 @@ impl Node4 {
         lo: [Vec4::INFINITY; 3],
         hi: [Vec4::INFINITY; 3],
         child: [EMPTY; 4],
-        count: [0; 4],
     };
 
     pub fn lane_box(&self, lane: usize) -> ([f32; 3], [f32; 3]) {
@@ -58,18 +75,36 @@ pub const STACK: usize = 3 * crate::layout::BVH_MAX_DEPTH as usize + 4;
 /// The binary tree collapsed: each node takes the two children of a binary
 /// node and keeps opening the child with the largest box (the likeliest to
 /// be entered) until it has four or only leaves. Node 0 is the root; empty
-/// for an empty tree.
-pub fn collapse(bvh: &Bvh) -> Vec<Node4> {
-    let mut out = Vec::with_capacity(bvh.nodes.len() / 3 + 1);
+/// for an empty tree. `corners` gives a primitive reference's triangle in
+/// f32, None for a sphere.
+pub fn collapse(bvh: &Bvh, corners: impl Fn(u32) -> Option<[[f32; 3]; 3]>) -> WideBvh {
+    let mut out = WideBvh {
+        nodes: Vec::with_capacity(bvh.nodes.len() / 3 + 1),
+        leaves: Vec::with_capacity(bvh.nodes.len() / 2 + 1),
+    };
     if !bvh.nodes.is_empty() {
         collapse_node(&bvh.nodes, 0, &mut out);
+    }
+    for leaf in &mut out.leaves {
+        let refs = &bvh.prim_refs[leaf.first as usize..(leaf.first + leaf.count) as usize];
+        let tris: Vec<_> = refs.iter().map(|&r| corners(r)).collect();
+        leaf.simd = tris.len() <= 4 && tris.iter().all(Option::is_some);
+        if leaf.simd {
+            for (lane, tri) in tris.iter().flatten().enumerate() {
+                for (corner, p) in tri.iter().enumerate() {
+                    for (axis, &x) in p.iter().enumerate() {
+                        leaf.p[axis][corner][lane] = x;
+                    }
+                }
+            }
+        }
     }
     out
 }
 
-fn collapse_node(bin: &[GpuBvhNode], index: usize, out: &mut Vec<Node4>) -> u32 {
-    let slot = out.len();
-    out.push(Node4::EMPTY);
+fn collapse_node(bin: &[GpuBvhNode], index: usize, out: &mut WideBvh) -> u32 {
+    let slot = out.nodes.len();
+    out.nodes.push(Node4::EMPTY);
     let interior = |i: usize| bin[i].count == 0;
     let area = |i: usize| {
         let n = &bin[i];
@@ -103,12 +138,75 @@ fn collapse_node(bin: &[GpuBvhNode], index: usize, out: &mut Vec<Node4>) -> u32 
         if interior(k) {
             node.child[lane] = collapse_node(bin, k, out);
         } else {
-            node.child[lane] = LEAF | bin[k].right_or_first;
-            node.count[lane] = bin[k].count;
+            node.child[lane] = LEAF | out.leaves.len() as u32;
+            out.leaves.push(LeafBlock {
+                p: [[Vec4::ZERO; 3]; 3],
+                first: bin[k].right_or_first,
+                count: bin[k].count,
+                simd: false,
+            });
         }
     }
-    out[slot] = node;
+    out.nodes[slot] = node;
     slot as u32
+}
+
+/// The watertight test (`trace::hit_triangle`) on a block's triangles, one
+/// per SIMD lane, operation for operation as the scalar one, so each lane
+/// gives the scalar test's t and barycentrics to the bit. Returns the lane
+/// of the nearest hit before `t_max` (the first of equal ones, as a scalar
+/// loop keeping strictly nearer hits would) with its t, b1, b2.
+#[inline(always)]
+pub fn hit_block_f32(
+    ray: &crate::cpu::trace::Ray<f32>,
+    block: &LeafBlock,
+    t_max: f32,
+) -> Option<(usize, f32, f32, f32)> {
+    let [kx, ky, kz] = ray.k;
+    let o = ray.origin.to_array();
+    let rel = |axis: usize, corner: usize| block.p[axis][corner] - Vec4::splat(o[axis]);
+    let (s0, s1, s2) = (
+        Vec4::splat(ray.shear.x),
+        Vec4::splat(ray.shear.y),
+        Vec4::splat(ray.shear.z),
+    );
+    let (a_z, b_z, c_z) = (rel(kz, 0), rel(kz, 1), rel(kz, 2));
+    let ax = rel(kx, 0) - s0 * a_z;
+    let ay = rel(ky, 0) - s1 * a_z;
+    let bx = rel(kx, 1) - s0 * b_z;
+    let by = rel(ky, 1) - s1 * b_z;
+    let cx = rel(kx, 2) - s0 * c_z;
+    let cy = rel(ky, 2) - s1 * c_z;
+    let u = cx * by - cy * bx;
+    let v = ax * cy - ay * cx;
+    let w = bx * ay - by * ax;
+    let zero = Vec4::ZERO;
+    let some_negative = u.cmplt(zero) | v.cmplt(zero) | w.cmplt(zero);
+    let some_positive = u.cmpgt(zero) | v.cmpgt(zero) | w.cmpgt(zero);
+    let det = u + v + w;
+    let t_scaled = u * (s2 * a_z) + v * (s2 * b_z) + w * (s2 * c_z);
+    let end = Vec4::splat(t_max) * det;
+    let positive = t_scaled.cmpgt(zero) & t_scaled.cmplt(end);
+    let negative = t_scaled.cmplt(zero) & t_scaled.cmpgt(end);
+    let det_positive = det.cmpgt(zero);
+    let inside = (det_positive & positive) | (!det_positive & negative);
+    let hit = !(some_negative & some_positive) & det.cmpne(zero) & inside;
+    let mut mask = hit.bitmask() & ((1u32 << block.count) - 1);
+    if mask == 0 {
+        return None;
+    }
+    let inv_det = Vec4::ONE / det;
+    let (t, b1, b2) = (t_scaled * inv_det, v * inv_det, w * inv_det);
+    let mut best: Option<(usize, f32, f32, f32)> = None;
+    while mask != 0 {
+        let lane = mask.trailing_zeros() as usize;
+        mask &= mask - 1;
+        let limit = best.map_or(t_max, |b| b.1);
+        if t[lane] < limit {
+            best = Some((lane, t[lane], b1[lane], b2[lane]));
+        }
+    }
+    best
 }
 
 /// The four boxes of `node` against a ray from `origin` with `inv_dir`,
@@ -168,23 +266,38 @@ mod tests {
         scene
     }
 
+    fn corners(scene: &Scene) -> impl Fn(u32) -> Option<[[f32; 3]; 3]> + '_ {
+        |r| {
+            Some(
+                scene.triangles[r as usize]
+                    .vertices
+                    .map(|v| v.position.as_vec3().to_array()),
+            )
+        }
+    }
+
     /// Every binary leaf appears once, under boxes that are the binary
     /// tree's own.
     #[test]
     fn collapse_keeps_every_leaf_and_box() {
         for n in [1, 2, 3, 5, 100, 3000] {
-            let bvh = Bvh::build(&scene(n));
-            let wide = collapse(&bvh);
+            let scene = scene(n);
+            let bvh = Bvh::build(&scene);
+            let wide = collapse(&bvh, corners(&scene));
             let mut leaves: Vec<(u32, u32, [f32; 3], [f32; 3])> = Vec::new();
-            for node in &wide {
+            for node in &wide.nodes {
                 for lane in 0..4 {
                     let (lo, hi) = node.lane_box(lane);
                     match node.child[lane] {
-                        EMPTY => assert!(lo[0].is_infinite() && node.count[lane] == 0),
-                        c if c & LEAF != 0 => leaves.push((c & !LEAF, node.count[lane], lo, hi)),
+                        EMPTY => assert!(lo[0].is_infinite()),
+                        c if c & LEAF != 0 => {
+                            let leaf = &wide.leaves[(c & !LEAF) as usize];
+                            assert!(leaf.simd, "triangles only");
+                            leaves.push((leaf.first, leaf.count, lo, hi));
+                        }
                         c => {
                             // The child's lanes fit inside this lane's box.
-                            let child = &wide[c as usize];
+                            let child = &wide.nodes[c as usize];
                             for l in 0..4 {
                                 if child.child[l] == EMPTY {
                                     continue;
@@ -207,7 +320,8 @@ mod tests {
                 .collect();
             want.sort_by_key(|l| l.0);
             assert_eq!(leaves, want, "{n} triangles");
-            assert!(wide.len() <= bvh.nodes.len() / 2 + 1);
+            assert_eq!(wide.leaves.len(), leaves.len(), "one block a leaf");
+            assert!(wide.nodes.len() <= bvh.nodes.len() / 2 + 1);
         }
     }
 
@@ -252,8 +366,15 @@ mod tests {
             assert!(hits > 300 && blocked > 30, "{hits} hits, {blocked} blocked");
             // NaN directions pass every box test, unused lanes included.
             let nan = R::from_f64(f64::NAN);
-            let ray = make_ray(R::v3(R::ZERO, R::ZERO, R::ZERO), R::v3(nan, nan, nan), R::ZERO);
-            assert_eq!(traverse(&cpu, &ray, R::T_INF, false, &[], R::ZERO).prim, u32::MAX);
+            let ray = make_ray(
+                R::v3(R::ZERO, R::ZERO, R::ZERO),
+                R::v3(nan, nan, nan),
+                R::ZERO,
+            );
+            assert_eq!(
+                traverse(&cpu, &ray, R::T_INF, false, &[], R::ZERO).prim,
+                u32::MAX
+            );
         }
         let scene = scene(2000);
         let bvh = Bvh::build(&scene);
@@ -261,12 +382,59 @@ mod tests {
         check::<f64>(&scene, &bvh);
     }
 
+    /// Each lane of the SIMD triangle test gives the scalar test's t and
+    /// barycentrics to the bit, and the block's answer is the nearest hit
+    /// (the first of equal ones), as testing the leaf's triangles in order.
+    #[test]
+    fn simd_triangles_match_the_scalar_test() {
+        use crate::cpu::trace::{hit_triangle, make_ray};
+        use glam::Vec3;
+        let scene = scene(3000);
+        let bvh = Bvh::build(&scene);
+        let wide = collapse(&bvh, corners(&scene));
+        let tri = |r: u32| corners(&scene)(r).expect("triangle").map(Vec3::from);
+        let mut state = 5u32;
+        let mut next = || {
+            state = crate::cpu::sample::hash_u32(state);
+            f32::from_bits(state >> 9 | 0x3f80_0000) * 2.0 - 3.0
+        };
+        let mut hits = 0;
+        for leaf in &wide.leaves {
+            let refs = &bvh.prim_refs[leaf.first as usize..(leaf.first + leaf.count) as usize];
+            for _ in 0..20 {
+                // Rays from near the camera towards a point of the leaf's
+                // first triangle, so many hit, some on edges and corners.
+                let target = tri(refs[0])[0] * (1.0 + next().abs() * 1e-3);
+                let origin = Vec3::new(next(), next(), next()) * 3.0;
+                let ray = make_ray::<f32>(origin, (target - origin).normalize(), 0.0);
+                let t_max = if next() > 0.0 { f32::MAX } else { 18.0 };
+                let mut want = None;
+                let mut limit = t_max;
+                for (lane, &r) in refs.iter().enumerate() {
+                    let (t, b1, b2) = hit_triangle(&ray, &tri(r), limit);
+                    if t < limit {
+                        limit = t;
+                        want = Some((lane, t, b1, b2));
+                    }
+                }
+                let got = hit_block_f32(&ray, leaf, t_max);
+                assert_eq!(
+                    got.map(|g| (g.0, g.1.to_bits(), g.2.to_bits(), g.3.to_bits())),
+                    want.map(|g| (g.0, g.1.to_bits(), g.2.to_bits(), g.3.to_bits()))
+                );
+                hits += usize::from(want.is_some());
+            }
+        }
+        assert!(hits > wide.leaves.len() * 3, "{hits} hits");
+    }
+
     /// The SIMD test gives each lane what the scalar test gives its box.
     #[test]
     fn simd_boxes_match_the_scalar_test() {
         use crate::cpu::trace::{hit_aabb, make_ray};
         use crate::cpu::Real;
-        let wide = collapse(&Bvh::build(&scene(500)));
+        let scene = scene(500);
+        let wide = collapse(&Bvh::build(&scene), corners(&scene));
         let mut state = 3u32;
         let mut next = || {
             state = crate::cpu::sample::hash_u32(state);
@@ -281,7 +449,7 @@ mod tests {
             } else {
                 next() + 20.0
             };
-            for node in &wide {
+            for node in &wide.nodes {
                 let (mask, t) =
                     hit_boxes_f32(ray.origin, ray.inv_dir, node, t_max, f32::BOX_T_SCALE);
                 for (lane, t) in t.iter().enumerate() {
