@@ -30,9 +30,17 @@ pub struct Sphere<R: Real> {
     pub velocity: R::V3,
 }
 
+/// A triangle corner's shading normal and material (an index into
+/// `CpuScene::materials`, as the scene keeps them: a material per corner
+/// would be most of a big scene's memory here too).
 #[derive(Clone, Copy, Debug)]
 pub struct VertexShading<R: Real> {
     pub normal: R::V3,
+    pub material: u32,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct SurfaceMaterial<R: Real> {
     pub kd: R::V3,
     pub ks: R::V3,
     pub shininess: R,
@@ -56,6 +64,7 @@ pub struct CpuScene<'a, R: Real> {
     pub triangles: Vec<[R::V3; 3]>,
     pub triangle_velocity: Vec<R::V3>,
     pub shading: Vec<[VertexShading<R>; 3]>,
+    pub materials: Vec<SurfaceMaterial<R>>,
     pub lights: Vec<Light<R>>,
     /// The BVH collapsed to four children a node, with its leaves'
     /// triangles in blocks for the SIMD test (`wide`).
@@ -114,20 +123,29 @@ impl<'a, R: Real> CpuScene<'a, R> {
                 .iter()
                 .map(|t| t.vertices.map(|x| v(x.position)))
                 .collect(),
-            triangle_velocity: scene.triangles.iter().map(|t| v(t.velocity)).collect(),
+            // Read only with motion blur (`triangle_at`).
+            triangle_velocity: if features.motion_blur {
+                scene.triangles.iter().map(|t| v(t.velocity)).collect()
+            } else {
+                Vec::new()
+            },
             shading: scene
                 .triangles
                 .iter()
                 .map(|t| {
-                    t.vertices.map(|x| {
-                        let m = scene.material(&x);
-                        VertexShading {
-                            normal: v(x.normal),
-                            kd: v(m.kd),
-                            ks: v(m.ks),
-                            shininess: R::from_f64(m.shininess),
-                        }
+                    t.vertices.map(|x| VertexShading {
+                        normal: v(x.normal),
+                        material: x.material,
                     })
+                })
+                .collect(),
+            materials: scene
+                .materials
+                .iter()
+                .map(|m| SurfaceMaterial {
+                    kd: v(m.kd),
+                    ks: v(m.ks),
+                    shininess: R::from_f64(m.shininess),
                 })
                 .collect(),
             lights: scene
@@ -736,14 +754,15 @@ pub fn surface_point<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>, hit: &Hit<R>) -
         s[0].normal * w[0] + s[1].normal * w[1] + s[2].normal * w[2],
         ng,
     );
+    let m = s.map(|c| &scene.materials[c.material as usize]);
     SurfacePoint {
         p,
         n,
         ng,
         scale: R::vabs(tri[0] * w[0]) + R::vabs(tri[1] * w[1]) + R::vabs(tri[2] * w[2]),
-        kd: s[0].kd * w[0] + s[1].kd * w[1] + s[2].kd * w[2],
-        ks: s[0].ks * w[0] + s[1].ks * w[1] + s[2].ks * w[2],
-        shininess: w[0] * s[0].shininess + w[1] * s[1].shininess + w[2] * s[2].shininess,
+        kd: m[0].kd * w[0] + m[1].kd * w[1] + m[2].kd * w[2],
+        ks: m[0].ks * w[0] + m[1].ks * w[1] + m[2].ks * w[2],
+        shininess: w[0] * m[0].shininess + w[1] * m[1].shininess + w[2] * m[2].shininess,
     }
 }
 
