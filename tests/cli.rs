@@ -443,6 +443,38 @@ fn bench_hard_prints_counts_and_pixels() {
 }
 
 #[test]
+fn bench_plots_render_time_against_primitives() {
+    let d = tmp();
+    let scenes = [
+        repo_path("scenes/empty.scene"),
+        repo_path("scenes/showcase.scene"),
+    ];
+    let scenes: Vec<String> = scenes.iter().map(|p| p.display().to_string()).collect();
+    let mut args = vec!["bench", "--no-gpu", "--repeat", "1", "--plot", "t.svg"];
+    args.extend(scenes.iter().map(String::as_str));
+    args.extend(SMALL);
+    let o = glint(&args, d.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let svg = std::fs::read_to_string(d.path().join("t.svg")).expect("plot written");
+    assert!(svg.starts_with("<svg") && svg.contains("CPU f32"), "{svg}");
+    assert!(!svg.contains(">GPU<"), "no GPU line without GPU times");
+    args[5] = "t.png";
+    let o = glint(&args, d.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let png = image::open(d.path().join("t.png")).expect("a PNG");
+    assert_eq!((png.width(), png.height()), (1440, 960));
+    // Refused before any work: a type glint does not draw.
+    args[5] = "t.pdf";
+    let o = glint(&args, d.path());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("name an .svg or .png file"),
+        "{}",
+        stderr(&o)
+    );
+}
+
+#[test]
 fn frames_are_numbered_and_split_by_range() {
     let d = tmp();
     let scene = repo_path("scenes/effects/motion_blur.scene")

@@ -1028,6 +1028,34 @@ mod tests {
         }
     }
 
+    /// A read that fails part way is an error naming the input, never a
+    /// scene made of what was read before it.
+    #[test]
+    fn a_failed_read_is_an_error_not_a_shorter_scene() {
+        /// The first `limit` bytes of a valid scene, a few at a time, then
+        /// an error.
+        struct Failing {
+            at: usize,
+            limit: usize,
+        }
+        impl Read for Failing {
+            fn read(&mut self, buf: &mut [u8]) -> std::io::Result<usize> {
+                let text = b"2 amb: 0 0 0 light pos: 0 0 0 col: 1 1 1 light pos: 1 1 1 col: 1 1 1";
+                if self.at == self.limit {
+                    return Err(std::io::Error::other("disk gone"));
+                }
+                let n = (self.limit - self.at).min(buf.len()).min(3);
+                buf[..n].copy_from_slice(&text[self.at..self.at + n]);
+                self.at += n;
+                Ok(n)
+            }
+        }
+        let failing = Failing { at: 0, limit: 45 };
+        let err = parse_windows(failing, Path::new("s.scene"), 4, 2).unwrap_err();
+        assert!(matches!(err, Error::ReadScene { .. }), "{err}");
+        assert!(err.to_string().contains("s.scene"), "{err}");
+    }
+
     #[test]
     fn caret_points_at_the_token() {
         let err = parse_scene(
