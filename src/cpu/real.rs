@@ -92,19 +92,8 @@ pub trait Real:
     fn offset_ray(p: Self::V3, n: Self::V3, scale: Self::V3) -> Self::V3;
 
     /// `hit_aabb` on the four boxes of a collapsed node: a bit per lane
-    /// hit, and each lane's entry t. SIMD lanes for f32.
-    fn hit_boxes(ray: &Ray<Self>, node: &Node4, t_max: Self) -> (u32, [Self; 4]) {
-        let mut mask = 0;
-        let mut t = [Self::T_INF; 4];
-        for (lane, t) in t.iter_mut().enumerate() {
-            let (lo, hi) = node.lane_box(lane);
-            *t = super::trace::hit_aabb(ray, lo, hi, t_max);
-            if *t != Self::T_INF {
-                mask |= 1 << lane;
-            }
-        }
-        (mask, t)
-    }
+    /// hit, and each lane's entry t (`wide::hit_boxes_f32`, `_f64`).
+    fn hit_boxes(ray: &Ray<Self>, node: &Node4, t_max: Self) -> (u32, [Self; 4]);
 
     /// Whether `hit_block` tests a leaf's triangles together.
     const SIMD_LEAVES: bool = false;
@@ -256,4 +245,13 @@ impl_real!(
         super::wide::hit_block_f32(ray, block, t_max)
     }
 );
-impl_real!(f64, DVec3, i64, (f64::EPSILON / f32::EPSILON as f64));
+impl_real!(
+    f64,
+    DVec3,
+    i64,
+    (f64::EPSILON / f32::EPSILON as f64),
+    #[inline(always)]
+    fn hit_boxes(ray: &Ray<f64>, node: &Node4, t_max: f64) -> (u32, [f64; 4]) {
+        super::wide::hit_boxes_f64(ray.origin, ray.inv_dir, node, t_max, Self::BOX_T_SCALE)
+    }
+);

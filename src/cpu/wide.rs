@@ -233,6 +233,30 @@ pub fn hit_boxes_f32(
     (t_near.cmple(t_far).bitmask(), t_near.to_array())
 }
 
+/// `hit_boxes_f32` in f64 (the ground-truth reference): the f32 boxes
+/// widened exactly, each lane `trace::hit_aabb`'s arithmetic in f64.
+#[inline(always)]
+pub fn hit_boxes_f64(
+    origin: glam::DVec3,
+    inv_dir: glam::DVec3,
+    node: &Node4,
+    t_max: f64,
+    box_t_scale: f64,
+) -> (u32, [f64; 4]) {
+    use glam::DVec4;
+    let slab = |axis: usize, o: f64, inv: f64| {
+        let t0 = (node.lo[axis].as_dvec4() - DVec4::splat(o)) * DVec4::splat(inv);
+        let t1 = (node.hi[axis].as_dvec4() - DVec4::splat(o)) * DVec4::splat(inv);
+        (t0.min(t1), t0.max(t1))
+    };
+    let (nx, fx) = slab(0, origin.x, inv_dir.x);
+    let (ny, fy) = slab(1, origin.y, inv_dir.y);
+    let (nz, fz) = slab(2, origin.z, inv_dir.z);
+    let t_near = nx.max(ny).max(nz.max(DVec4::ZERO));
+    let t_far = fx.min(fy).min(fz.min(DVec4::splat(t_max))) * DVec4::splat(box_t_scale);
+    (t_near.cmple(t_far).bitmask(), t_near.to_array())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -428,7 +452,8 @@ mod tests {
         assert!(hits > wide.leaves.len() * 3, "{hits} hits");
     }
 
-    /// The SIMD test gives each lane what the scalar test gives its box.
+    /// The SIMD test gives each lane what the scalar test gives its box, in
+    /// both precisions.
     #[test]
     fn simd_boxes_match_the_scalar_test() {
         use crate::cpu::trace::{hit_aabb, make_ray};
@@ -457,6 +482,19 @@ mod tests {
                     let scalar = hit_aabb(&ray, lo, hi, t_max);
                     let hit = scalar != f32::T_INF;
                     assert_eq!(mask & (1 << lane) != 0, hit, "lane {lane}");
+                    if hit {
+                        assert_eq!(*t, scalar);
+                    }
+                }
+                let ray64 = make_ray::<f64>(origin.as_dvec3(), dir.as_dvec3(), 0.0);
+                let t_max64 = f64::from(t_max);
+                let (mask, t) =
+                    hit_boxes_f64(ray64.origin, ray64.inv_dir, node, t_max64, f64::BOX_T_SCALE);
+                for (lane, t) in t.iter().enumerate() {
+                    let (lo, hi) = node.lane_box(lane);
+                    let scalar = hit_aabb(&ray64, lo, hi, t_max64);
+                    let hit = scalar != f64::T_INF;
+                    assert_eq!(mask & (1 << lane) != 0, hit, "f64 lane {lane}");
                     if hit {
                         assert_eq!(*t, scalar);
                     }
