@@ -205,15 +205,13 @@ fn build_tree(
     depth: u32,
     parallel_min: usize,
 ) -> (Vec<GpuBvhNode>, u32) {
-    if depth >= PARALLEL_LEVELS || prims.len() < 2 * parallel_min {
+    if depth >= PARALLEL_LEVELS || prims.len() < 2 * parallel_min.max(MAX_LEAF_SIZE) {
         let mut nodes = Vec::with_capacity(2 * prims.len());
         let deepest = build_in_place(&mut nodes, prims, extent, first, depth);
         return (nodes, deepest);
     }
-    let leaf = node(extent.bounds, first as u32, prims.len() as u32);
-    let Some((mid, [left_extent, right_extent])) = split(prims, extent) else {
-        return (vec![leaf], depth);
-    };
+    let mut parent = node(extent.bounds, first as u32, prims.len() as u32);
+    let (mid, [left_extent, right_extent]) = split(prims, extent);
     let (left, right) = prims.split_at_mut(mid);
     let ((mut nodes, left_depth), (right_nodes, right_depth)) = rayon::join(
         || build_tree(left, left_extent, first, depth + 1, parallel_min),
@@ -221,7 +219,6 @@ fn build_tree(
     );
     // Parent, then the left subtree, then the right: shift each subtree's
     // child indices by where it lands.
-    let mut parent = leaf;
     parent.count = 0;
     parent.right_or_first = (1 + nodes.len()) as u32;
     shift(&mut nodes, 1);
@@ -249,9 +246,7 @@ fn build_in_place(
     if prims.len() <= MAX_LEAF_SIZE || depth + 1 >= BVH_MAX_DEPTH {
         return depth;
     }
-    let Some((mid, [left_extent, right_extent])) = split(prims, extent) else {
-        return depth;
-    };
+    let (mid, [left_extent, right_extent]) = split(prims, extent);
     let (left, right) = prims.split_at_mut(mid);
     let left_depth = build_in_place(nodes, left, left_extent, first, depth + 1);
     let right_index = nodes.len();
@@ -304,13 +299,14 @@ impl Extent {
     }
 }
 
-/// Chooses a binned-SAH split and partitions `prims`; `None` (for at most
-/// `MAX_LEAF_SIZE` primitives) makes a leaf.
-/// Also returns both halves' extents: for a SAH split they are the unions
+/// Chooses a binned-SAH split of more than `MAX_LEAF_SIZE` primitives and
+/// partitions them; returns where the right half starts and both halves'
+/// extents: for a SAH split they are the unions
 /// of the bins on either side (min and max are exact, so the same boxes a
 /// pass over the halves would give), so no node folds over its primitives
 /// again.
-fn split(prims: &mut [Prim], extent: Extent) -> Option<(usize, [Extent; 2])> {
+fn split(prims: &mut [Prim], extent: Extent) -> (usize, [Extent; 2]) {
+    debug_assert!(prims.len() > MAX_LEAF_SIZE);
     let centroids = extent.centroids;
     let extent = centroids.max - centroids.min;
     let axis = extent.max_position();
@@ -347,20 +343,19 @@ fn split(prims: &mut [Prim], extent: Extent) -> Option<(usize, [Extent; 2])> {
         }
     }
     match best {
-        Some((_, plane)) if prims.len() > MAX_LEAF_SIZE => {
+        Some((_, plane)) => {
             let mid = partition(prims, |p| bin_of(p.centroid) <= plane);
             let side = |range: std::ops::Range<usize>| {
                 bins[range].iter().fold(Extent::EMPTY, |e, b| e.union(b.0))
             };
-            Some((mid, [side(0..plane + 1), side(plane + 1..BIN_COUNT)]))
+            (mid, [side(0..plane + 1), side(plane + 1..BIN_COUNT)])
         }
         // All centroids coincide (or no plane separates them): split by count so
-        // that oversized leaves cannot happen, unless the leaf is already small.
-        _ if prims.len() > MAX_LEAF_SIZE => {
+        // that oversized leaves cannot happen.
+        None => {
             let mid = prims.len() / 2;
-            Some((mid, [Extent::of(&prims[..mid]), Extent::of(&prims[mid..])]))
+            (mid, [Extent::of(&prims[..mid]), Extent::of(&prims[mid..])])
         }
-        _ => None,
     }
 }
 

@@ -95,7 +95,8 @@ pub trait Real:
     /// hit, and each lane's entry t (`wide::hit_boxes_f32`, `_f64`).
     fn hit_boxes(ray: &Ray<Self>, node: &Node4, t_max: Self) -> (u32, [Self; 4]);
 
-    /// Whether `hit_block` tests a leaf's triangles together.
+    /// Whether `hit_block` tests a leaf's triangles together; only then
+    /// does a collapsed tree get leaves it may be called on (`LeafBlock::simd`).
     const SIMD_LEAVES: bool = false;
 
     /// `wide::hit_block_f32` where `SIMD_LEAVES`; never called otherwise.

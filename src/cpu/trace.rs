@@ -97,12 +97,13 @@ impl<'a, R: Real> CpuScene<'a, R> {
         let effects = &options.effects;
         let features = Features::of(scene, effects);
         let half_extent = camera.half_extent.map(R::from_f64);
-        // The f32 corners are the f32 path's own (`v` rounds the same way).
+        // The f32 corners are the f32 path's own (`v` rounds the same way);
+        // none where `R` tests leaves one triangle at a time.
         let corners = |r: u32| {
             let t = scene
                 .triangles
                 .get(r as usize)
-                .filter(|_| r & SPHERE_BIT == 0)?;
+                .filter(|_| R::SIMD_LEAVES && r & SPHERE_BIT == 0)?;
             Some(t.vertices.map(|x| x.position.as_vec3().to_array()))
         };
         CpuScene {
@@ -474,7 +475,7 @@ fn hit_leaf<R: Real>(
     // The shader branches on ROBUST inside hit_sphere and hit_triangle.
     let robust = scene.methods == Methods::Robust;
     let (first, count) = (leaf.first as usize, leaf.count as usize);
-    if R::SIMD_LEAVES && leaf.simd && robust && !scene.motion_blur && skip.is_empty() {
+    if leaf.simd && robust && !scene.motion_blur && skip.is_empty() {
         if let Some((lane, t, b1, b2)) = R::hit_block(ray, leaf, best.t) {
             let prim = scene.prim_refs[first + lane];
             *best = Hit { t, prim, b1, b2 };

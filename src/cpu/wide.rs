@@ -1,6 +1,8 @@
 //! The CPU reference's view of the BVH: the shared binary tree collapsed to
-//! four children a node, whose four boxes one SIMD test checks at once (on
-//! f32; f64 tests them one by one, with the same arithmetic).
+//! four children a node, whose four boxes one SIMD test checks at once
+//! (`Vec4` lanes in f32, `DVec4` in f64, each lane `hit_aabb`'s arithmetic),
+//! and its leaves, whose up to four triangles meet one SIMD watertight test
+//! in f32.
 //!
 //! The boxes are the binary tree's own f32 boxes, tested with the same
 //! formula as `trace::hit_aabb`, so a ray reaches exactly the leaves it
@@ -76,7 +78,8 @@ pub const STACK: usize = 3 * crate::layout::BVH_MAX_DEPTH as usize + 4;
 /// node and keeps opening the child with the largest box (the likeliest to
 /// be entered) until it has four or only leaves. Node 0 is the root; empty
 /// for an empty tree. `corners` gives a primitive reference's triangle in
-/// f32, None for a sphere.
+/// f32, None for a sphere (or always None where leaves are not tested in
+/// SIMD).
 pub fn collapse(bvh: &Bvh, corners: impl Fn(u32) -> Option<[[f32; 3]; 3]>) -> WideBvh {
     let mut out = WideBvh {
         nodes: Vec::with_capacity(bvh.nodes.len() / 3 + 1),
@@ -87,16 +90,23 @@ pub fn collapse(bvh: &Bvh, corners: impl Fn(u32) -> Option<[[f32; 3]; 3]>) -> Wi
     }
     for leaf in &mut out.leaves {
         let refs = &bvh.prim_refs[leaf.first as usize..(leaf.first + leaf.count) as usize];
-        let tris: Vec<_> = refs.iter().map(|&r| corners(r)).collect();
-        leaf.simd = tris.len() <= 4 && tris.iter().all(Option::is_some);
-        if leaf.simd {
-            for (lane, tri) in tris.iter().flatten().enumerate() {
-                for (corner, p) in tri.iter().enumerate() {
-                    for (axis, &x) in p.iter().enumerate() {
-                        leaf.p[axis][corner][lane] = x;
-                    }
+        if refs.len() > 4 {
+            continue;
+        }
+        let mut p = [[Vec4::ZERO; 3]; 3];
+        leaf.simd = refs.iter().enumerate().all(|(lane, &r)| {
+            let Some(tri) = corners(r) else {
+                return false;
+            };
+            for (corner, q) in tri.iter().enumerate() {
+                for (axis, &x) in q.iter().enumerate() {
+                    p[axis][corner][lane] = x;
                 }
             }
+            true
+        });
+        if leaf.simd {
+            leaf.p = p;
         }
     }
     out

@@ -226,7 +226,7 @@ pub fn write_obj(scene: &Scene, mtl_name: &str) -> (String, String, ObjWritten) 
         if t.vertices.iter().any(|v| *scene.material(v) != m) {
             info.mixed_materials += 1;
         }
-        let mkey = [m.kd.x, m.kd.y, m.kd.z, m.ks.x, m.ks.y, m.ks.z, m.shininess].map(f64::to_bits);
+        let mkey = m.key();
         let next = materials.len();
         let id = *materials.entry(mkey).or_insert_with(|| {
             let _ = writeln!(

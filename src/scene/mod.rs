@@ -23,6 +23,14 @@ pub struct Material {
     pub shininess: f64,
 }
 
+impl Material {
+    /// Its exact bits, for finding equal materials (`-0.0` and `0.0` apart).
+    pub fn key(&self) -> [u64; 7] {
+        let (d, s) = (self.kd, self.ks);
+        [d.x, d.y, d.z, s.x, s.y, s.z, self.shininess].map(f64::to_bits)
+    }
+}
+
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Sphere {
     pub center: DVec3,
@@ -193,7 +201,7 @@ pub struct MaterialIds {
 
 impl MaterialIds {
     pub fn id(&mut self, materials: &mut Vec<Material>, m: Material) -> u32 {
-        let key = [m.kd.x, m.kd.y, m.kd.z, m.ks.x, m.ks.y, m.ks.z, m.shininess].map(f64::to_bits);
+        let key = m.key();
         if let Some((k, id)) = self.last {
             if k == key {
                 return id;
