@@ -8,8 +8,8 @@
 //   3  storage, read      array<Triangle>          positions (w: material index bits)
 //   4  storage, read      array<TriangleNormals>   the 3 vertex normals of each triangle
 //   5  storage, read      array<Light>
-//   6  storage, read      array<BvhNode>           depth-first, see src/bvh.rs
-//   7  storage, read      array<u32>               primitive refs (bit 31: sphere)
+//   6  storage, read      array<WideNode>          four children a node, root first (src/layout.rs)
+//   7  storage, read      array<u32>               primitive refs (bit 31: sphere, bit 30: last of its leaf)
 //   8  storage, rw        array<vec4<f32>>         tile output, linear RGB, row-major
 //   9  storage, read      array<vec4<f32>>         velocities: spheres, then triangles
 //  10  storage, rw        array<PixelState>        render_tile: each pixel's place in its work
@@ -165,11 +165,14 @@ struct Light {
     _pad2: f32,
 }
 
-struct BvhNode {
-    min: vec3<f32>,
-    right_or_first: u32,
-    max: vec3<f32>,
-    count: u32,
+// Four child boxes quantised within the node's box (src/layout.rs:
+// GpuWideNode), and per lane a node index, WIDE_LEAF | first primitive
+// reference, or WIDE_EMPTY.
+struct WideNode {
+    origin: vec4<f32>,
+    lo_hi: vec4<u32>,
+    hi_yz: vec4<u32>,
+    child: vec4<u32>,
 }
 
 @group(0) @binding(0) var<uniform> frame: Frame;
@@ -178,7 +181,7 @@ struct BvhNode {
 @group(0) @binding(3) var<storage, read> triangles: array<Triangle>;
 @group(0) @binding(4) var<storage, read> normals: array<TriangleNormals>;
 @group(0) @binding(5) var<storage, read> lights: array<Light>;
-@group(0) @binding(6) var<storage, read> nodes: array<BvhNode>;
+@group(0) @binding(6) var<storage, read> nodes: array<WideNode>;
 @group(0) @binding(7) var<storage, read> prim_refs: array<u32>;
 @group(0) @binding(8) var<storage, read_write> output: array<vec4<f32>>;
 @group(0) @binding(9) var<storage, read> velocities: array<vec4<f32>>;
@@ -195,9 +198,9 @@ struct BvhNode {
 @group(0) @binding(20) var<storage, read> materials1: array<Material>;
 @group(0) @binding(21) var<storage, read> materials2: array<Material>;
 @group(0) @binding(22) var<storage, read> materials3: array<Material>;
-@group(0) @binding(23) var<storage, read> nodes1: array<BvhNode>;
-@group(0) @binding(24) var<storage, read> nodes2: array<BvhNode>;
-@group(0) @binding(25) var<storage, read> nodes3: array<BvhNode>;
+@group(0) @binding(23) var<storage, read> nodes1: array<WideNode>;
+@group(0) @binding(24) var<storage, read> nodes2: array<WideNode>;
+@group(0) @binding(25) var<storage, read> nodes3: array<WideNode>;
 
 // Loop iterations this invocation has run (every loop counts, as drivers
 // count them), and whether any of its loops ended without its own exit.
@@ -206,6 +209,10 @@ var<private> cut: bool;
 
 const SPHERE_BIT: u32 = 0x80000000u;
 const BVH_MAX_DEPTH: u32 = 64u;
+const TRAVERSAL_STACK: u32 = 64u;
+const WIDE_LEAF: u32 = 0x80000000u;
+const WIDE_EMPTY: u32 = 0xffffffffu;
+const LEAF_END: u32 = 0x40000000u;
 const WORKGROUP_SIZE: u32 = 8u;
 const NO_HIT: u32 = 0xffffffffu;
 // Most iterations one BVH traversal may take; a ray that needs more is cut
@@ -596,7 +603,7 @@ fn load_material(i: u32) -> Material {
     return materials[i];
 }
 
-fn load_node(i: u32) -> BvhNode {
+fn load_node(i: u32) -> WideNode {
     if (SPLIT) {
         let shift = frame.chunk_shift.w;
         let j = i & ((1u << shift) - 1u);
@@ -691,12 +698,18 @@ fn hit_sphere_through_end(ray: Ray, s: Sphere) -> f32 {
     return T_INF;
 }
 
-// Tests the leaf's primitives; `any_hit` returns at the first hit in range.
-fn hit_leaf(ray: Ray, node: BvhNode, best: ptr<function, Hit>, any_hit: bool) -> bool {
-    var i = 0u;
-    for (; i < node.count; i++) {
+// Tests the primitives of the leaf whose references start at `first` (the
+// last is marked LEAF_END); `any_hit` returns at the first hit in range.
+fn hit_leaf(ray: Ray, first: u32, best: ptr<function, Hit>, any_hit: bool) -> bool {
+    var i = first;
+    var last = false;
+    // The run ends at its marked reference; the list's end only bounds
+    // the loop for the compiler.
+    for (; !last && i < arrayLength(&prim_refs); i++) {
         work += 1u;
-        let prim = prim_refs[node.right_or_first + i];
+        let word = prim_refs[i];
+        last = (word & LEAF_END) != 0u;
+        let prim = word & ~LEAF_END;
         let index = prim & ~SPHERE_BIT;
         if (LIGHT_SKIPS) {
             if (any_hit && skipped(prim)) {
@@ -739,26 +752,97 @@ fn hit_leaf(ray: Ray, node: BvhNode, best: ptr<function, Hit>, any_hit: bool) ->
             }
         }
     }
-    if (i < node.count) {
+    if (!last) {
         cut = true;
     }
     return false;
 }
 
-// Walks the BVH nearest child first. Closest hit in (0, t_max), or with
-// `any_hit` the first hit found (shadow rays stop at the first blocker).
+// The four bytes of w, lowest first.
+fn unpack_bytes(w: u32) -> vec4<f32> {
+    return vec4<f32>((vec4(w) >> vec4(0u, 8u, 16u, 24u)) & vec4(0xffu));
+}
+
+// Entry distances of the ray into a node's four child boxes within
+// [0, t_max]: each box decoded (it holds the binary tree's f32 box; see
+// GpuWideNode), then hit_aabb's arithmetic lane by lane; T_INF where it
+// misses and in unused lanes (which a NaN ray would otherwise pass).
+fn hit_boxes(ray: Ray, node: WideNode, t_max: f32) -> vec4<f32> {
+    let o = ray.origin;
+    let d = ray.inv_dir;
+    let e = bitcast<u32>(node.origin.w);
+    let s = vec3(bitcast<f32>((e & 0xffu) << 23u), bitcast<f32>(((e >> 8u) & 0xffu) << 23u),
+        bitcast<f32>(((e >> 16u) & 0xffu) << 23u));
+    let lo_x = node.origin.x + unpack_bytes(node.lo_hi.x) * s.x;
+    let lo_y = node.origin.y + unpack_bytes(node.lo_hi.y) * s.y;
+    let lo_z = node.origin.z + unpack_bytes(node.lo_hi.z) * s.z;
+    let hi_x = node.origin.x + unpack_bytes(node.lo_hi.w) * s.x;
+    let hi_y = node.origin.y + unpack_bytes(node.hi_yz.x) * s.y;
+    let hi_z = node.origin.z + unpack_bytes(node.hi_yz.y) * s.z;
+    let x0 = (lo_x - o.x) * d.x;
+    let x1 = (hi_x - o.x) * d.x;
+    let y0 = (lo_y - o.y) * d.y;
+    let y1 = (hi_y - o.y) * d.y;
+    let z0 = (lo_z - o.z) * d.z;
+    let z1 = (hi_z - o.z) * d.z;
+    let t_near = max(max(min(x0, x1), min(y0, y1)), max(min(z0, z1), vec4(0.0)));
+    let t_far = min(min(max(x0, x1), max(y0, y1)), min(max(z0, z1), vec4(t_max))) * BOX_T_SCALE;
+    let hit = (t_near <= t_far) & (node.child != vec4(WIDE_EMPTY));
+    return select(vec4(T_INF), t_near, hit);
+}
+
+// A child lane of a node: its entry distance (T_INF: missed), its word
+// (WideNode.child) and its lane.
+struct Child {
+    t: f32,
+    word: u32,
+    lane: u32,
+}
+
+// Puts a and b in visiting order: nearer first, the later lane first at
+// equal t (the CPU reference's order).
+fn order(a: ptr<function, Child>, b: ptr<function, Child>) {
+    let x = *a;
+    let y = *b;
+    if (y.t < x.t || (y.t == x.t && y.lane > x.lane)) {
+        *a = y;
+        *b = x;
+    }
+}
+
+// Appends c's word to out[k] when c was hit and is a leaf (kind WIDE_LEAF)
+// or a node (kind 0).
+fn append_hit(out: ptr<function, vec4<u32>>, k: ptr<function, u32>, c: Child, kind: u32) {
+    let take = c.t < T_INF && (c.word & WIDE_LEAF) == kind;
+    *out = select(*out, vec4(c.word), vec4(take) & (vec4(*k) == vec4(0u, 1u, 2u, 3u)));
+    *k += u32(take);
+}
+
+// Walks the four-wide BVH. Closest hit in (0, t_max), or with `any_hit` the
+// first hit found (shadow rays stop at the first blocker).
+//
+// A node's hit children are taken in the CPU reference's order
+// (src/cpu/trace.rs: traverse_from): its leaves first, then its inner
+// nodes, each nearest first and, at equal entry distance, the later lane
+// first. The distances are to the decoded boxes, a little larger than the
+// CPU's, so the order may differ from the CPU's where two entries are
+// close; which of two hits at exactly the same t is kept depends only on
+// the tree, never on the run.
 fn traverse(ray: Ray, t_max: f32, any_hit: bool) -> Hit {
     var best = Hit(t_max, NO_HIT, 0.0, 0.0);
     if (frame.node_count == 0u) {
         return best;
     }
-    let root = load_node(0u);
-    if (hit_aabb(ray, root.min, root.max, t_max) == T_INF) {
-        return best;
-    }
-    var stack: array<u32, BVH_MAX_DEPTH>;
-    var sp = 0u;
-    var index = 0u;
+    // Entries still to visit (node indices and leaf words) in groups of up
+    // to three, one group per node that left any: `top` holds the newest
+    // (entries in xyz, how many in w), `groups` the older ones. A node
+    // stores at most one group, and the tree is at most BVH_MAX_DEPTH deep,
+    // so TRAVERSAL_STACK groups cannot overflow. Groups rather than single
+    // entries: one vec4 store a node instead of up to three scattered ones.
+    var groups: array<vec4<u32>, TRAVERSAL_STACK>;
+    var gsp = 0u;
+    var top = vec4(0u);
+    var entry = 0u;
     var steps = 0u;
     var finished = false;
     loop {
@@ -767,43 +851,58 @@ fn traverse(ray: Ray, t_max: f32, any_hit: bool) -> Hit {
         }
         steps += 1u;
         work += 1u;
-        let node = load_node(index);
-        if (node.count > 0u) {
-            if (hit_leaf(ray, node, &best, any_hit)) {
+        if ((entry & WIDE_LEAF) != 0u) {
+            if (hit_leaf(ray, entry & ~WIDE_LEAF, &best, any_hit)) {
                 return best;
             }
-            if (sp == 0u) {
-                finished = true;
-                break;
-            }
-            sp -= 1u;
-            index = stack[sp];
-            continue;
-        }
-        let left = index + 1u;
-        let right = node.right_or_first;
-        let left_node = load_node(left);
-        let right_node = load_node(right);
-        let t_left = hit_aabb(ray, left_node.min, left_node.max, best.t);
-        let t_right = hit_aabb(ray, right_node.min, right_node.max, best.t);
-        if (t_left == T_INF && t_right == T_INF) {
-            if (sp == 0u) {
-                finished = true;
-                break;
-            }
-            sp -= 1u;
-            index = stack[sp];
-        } else if (t_right == T_INF) {
-            index = left;
-        } else if (t_left == T_INF) {
-            index = right;
         } else {
-            // Both hit: visit the nearer now, the farther later. The builder
-            // caps depth at BVH_MAX_DEPTH, so the stack cannot overflow.
-            index = select(right, left, t_left <= t_right);
-            stack[sp] = select(left, right, t_left <= t_right);
-            sp += 1u;
+            let node = load_node(entry);
+            let t4 = hit_boxes(ray, node, best.t);
+            var a = Child(t4.x, node.child.x, 0u);
+            var b = Child(t4.y, node.child.y, 1u);
+            var c = Child(t4.z, node.child.z, 2u);
+            var d = Child(t4.w, node.child.w, 3u);
+            // Five compare-exchanges order any four.
+            order(&a, &b);
+            order(&c, &d);
+            order(&a, &c);
+            order(&b, &d);
+            order(&b, &c);
+            // The hit children in the reverse of the order they are to be
+            // visited in: inner nodes, then leaves, each farthest first.
+            var out = vec4(0u);
+            var k = 0u;
+            append_hit(&out, &k, d, 0u);
+            append_hit(&out, &k, c, 0u);
+            append_hit(&out, &k, b, 0u);
+            append_hit(&out, &k, a, 0u);
+            append_hit(&out, &k, d, WIDE_LEAF);
+            append_hit(&out, &k, c, WIDE_LEAF);
+            append_hit(&out, &k, b, WIDE_LEAF);
+            append_hit(&out, &k, a, WIDE_LEAF);
+            if (k > 0u) {
+                // The last is visited next; the rest wait as a group.
+                entry = out[k - 1u];
+                if (k > 1u) {
+                    if (top.w > 0u) {
+                        groups[gsp] = top;
+                        gsp += 1u;
+                    }
+                    top = vec4(out.xyz, k - 1u);
+                }
+                continue;
+            }
         }
+        if (top.w == 0u) {
+            if (gsp == 0u) {
+                finished = true;
+                break;
+            }
+            gsp -= 1u;
+            top = groups[gsp];
+        }
+        top.w -= 1u;
+        entry = top[top.w];
     }
     if (!finished) {
         cut = true;

@@ -225,6 +225,42 @@ pub struct GpuBvhNode {
     pub count: u32,
 }
 
+/// The shader's BVH node: the binary tree (`GpuBvhNode`) collapsed to four
+/// children a node (`cpu::wide::collapse_nodes`, the CPU reference's tree),
+/// each child's box quantised to 8 bits an axis within the node's box, then
+/// per lane a child word: a node index, `WIDE_LEAF | first` (a leaf whose
+/// primitive references start at `first` and run to the one marked
+/// `LEAF_END`), or `WIDE_EMPTY` (an unused lane). 64 bytes, four `vec4`
+/// loads a node.
+///
+/// `origin` xyz is the node box's low corner and w the bits of three
+/// biased exponents `e` (x | y << 8 | z << 16); a child's box on axis a is
+/// `origin[a] + q * 2^(e[a] - 127)` for its low and high bytes q
+/// (`lo`: x y z lanes in bytes 0-3 of words 0-2; `hi` x in word 3 of
+/// `lo_hi`, y z in words 0-1 of `hi_yz`). The product is exact, so the box
+/// is the same with or without a fused multiply-add, and the bytes are
+/// rounded outwards until it holds the child's f32 box.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuWideNode {
+    pub origin: [f32; 4],
+    pub lo_hi: [u32; 4],
+    pub hi_yz: [u32; 4],
+    pub child: [u32; 4],
+}
+
+/// `GpuWideNode::child` of a leaf lane: this bit plus its first primitive
+/// reference.
+pub const WIDE_LEAF: u32 = 1 << 31;
+/// `GpuWideNode::child` of an unused lane.
+pub const WIDE_EMPTY: u32 = u32::MAX;
+/// Bit 30 of the shader's primitive references: the last of its leaf.
+pub const LEAF_END: u32 = 1 << 30;
+/// Groups the shader's traversal stack holds: a node visited stores at most
+/// one (the entries it leaves for later), and the collapsed tree is no
+/// deeper than the binary one.
+pub const TRAVERSAL_STACK: u32 = BVH_MAX_DEPTH;
+
 /// A scene packed into the buffers the shader reads, in f32.
 ///
 /// Vulkan forbids zero-sized buffers, so `padded` gives each list at least one
@@ -236,7 +272,8 @@ pub struct GpuScene {
     pub normals: Vec<GpuTriangleNormals>,
     pub materials: Vec<GpuMaterial>,
     pub lights: Vec<GpuLight>,
-    pub nodes: Vec<GpuBvhNode>,
+    pub nodes: Vec<GpuWideNode>,
+    /// `Bvh::prim_refs`, the last of each leaf marked with `LEAF_END`.
     pub prim_refs: Vec<u32>,
     /// The surfaces through point lights, each light's run at its
     /// `skip_first`; empty when no light lies on a surface.
@@ -245,6 +282,128 @@ pub struct GpuScene {
     /// nothing moves.
     pub velocities: Vec<[f32; 4]>,
     pub ambient: [f32; 3],
+}
+
+/// The binary tree collapsed and quantised for the shader: a leaf lane
+/// names its first primitive reference (`leaf_runs` marks where each run
+/// ends).
+fn wide_nodes(bvh: &Bvh) -> Vec<GpuWideNode> {
+    crate::cpu::wide::collapse_nodes(bvh, |leaf| WIDE_LEAF | leaf.right_or_first)
+        .iter()
+        .map(quantise)
+        .collect()
+}
+
+/// `n`'s boxes in 8 bits an axis, each holding the f32 box it replaces.
+fn quantise(n: &crate::cpu::wide::Node4) -> GpuWideNode {
+    let used: Vec<usize> = (0..4).filter(|&l| n.child[l] != WIDE_EMPTY).collect();
+    let mut origin = [0.0f32; 4];
+    let mut exps = 0u32;
+    // Bytes by bound (lo x y z, hi x y z) and lane.
+    let mut q = [[0u32; 4]; 6];
+    for a in 0..3 {
+        let lo = used
+            .iter()
+            .map(|&l| n.lo[a][l])
+            .fold(f32::INFINITY, f32::min);
+        let hi = used
+            .iter()
+            .map(|&l| n.hi[a][l])
+            .fold(f32::NEG_INFINITY, f32::max);
+        let axis = QuantAxis::new(lo, hi);
+        origin[a] = axis.origin;
+        exps |= axis.biased << (8 * a);
+        for &l in &used {
+            q[a][l] = axis.below(n.lo[a][l]);
+            q[3 + a][l] = axis.above(n.hi[a][l]);
+        }
+    }
+    origin[3] = f32::from_bits(exps);
+    let pack = |b: [u32; 4]| b[0] | b[1] << 8 | b[2] << 16 | b[3] << 24;
+    GpuWideNode {
+        origin,
+        lo_hi: [pack(q[0]), pack(q[1]), pack(q[2]), pack(q[3])],
+        hi_yz: [pack(q[4]), pack(q[5]), 0, 0],
+        child: n.child,
+    }
+}
+
+/// One axis of a node's quantisation: bound = `origin + q * 2^(biased - 127)`
+/// for a byte q, computed in f32 as the shader does.
+#[derive(Clone, Copy, Debug)]
+struct QuantAxis {
+    origin: f32,
+    biased: u32,
+}
+
+impl QuantAxis {
+    /// Steps small enough that 255 of them reach from `lo` to `hi`.
+    /// Render-space boxes are finite (`Scene::render_scale`); a non-finite
+    /// one gets the widest range there is, never a smaller one.
+    fn new(lo: f32, hi: f32) -> QuantAxis {
+        if !(lo.is_finite() && hi.is_finite() && lo <= hi) {
+            return QuantAxis {
+                origin: -f32::MAX,
+                biased: 254,
+            };
+        }
+        let span = (f64::from(hi) - f64::from(lo)) / 255.0;
+        let e = if span > 0.0 {
+            span.log2().ceil() as i32
+        } else {
+            -126
+        };
+        let mut axis = QuantAxis {
+            origin: lo,
+            biased: (e.clamp(-126, 127) + 127) as u32,
+        };
+        // log2 in f64 may round a power of two's neighbour onto it.
+        while axis.biased < 254 && axis.at(255) < hi {
+            axis.biased += 1;
+        }
+        axis
+    }
+
+    /// The bound byte `k` stands for. `k * step` is exact (8 bits times a
+    /// power of two), so a fused multiply-add gives the same.
+    fn at(self, k: u32) -> f32 {
+        self.origin + k as f32 * f32::from_bits(self.biased << 23)
+    }
+
+    /// The largest byte whose bound is at most `x`.
+    fn below(self, x: f32) -> u32 {
+        let step = f64::from(f32::from_bits(self.biased << 23));
+        let guess = ((f64::from(x) - f64::from(self.origin)) / step).floor();
+        let mut k = guess.clamp(0.0, 255.0) as u32;
+        while k > 0 && self.at(k) > x {
+            k -= 1;
+        }
+        k
+    }
+
+    /// The smallest byte whose bound is at least `x` (255 where none is).
+    fn above(self, x: f32) -> u32 {
+        let step = f64::from(f32::from_bits(self.biased << 23));
+        let guess = ((f64::from(x) - f64::from(self.origin)) / step).ceil();
+        let mut k = guess.clamp(0.0, 255.0) as u32;
+        while k < 255 && self.at(k) < x {
+            k += 1;
+        }
+        while k > 0 && self.at(k - 1) >= x {
+            k -= 1;
+        }
+        k
+    }
+}
+
+/// The primitive references with the last of each leaf marked, so that a
+/// leaf lane needs no count.
+fn leaf_runs(bvh: &Bvh) -> Vec<u32> {
+    let mut refs = bvh.prim_refs.clone();
+    for n in bvh.nodes.iter().filter(|n| n.count > 0) {
+        refs[(n.right_or_first + n.count - 1) as usize] |= LEAF_END;
+    }
+    refs
 }
 
 fn f3(v: glam::DVec3) -> [f32; 3] {
@@ -350,8 +509,8 @@ impl GpuScene {
             normals,
             materials,
             lights,
-            nodes: bvh.nodes.clone(),
-            prim_refs: bvh.prim_refs.clone(),
+            nodes: wide_nodes(bvh),
+            prim_refs: leaf_runs(bvh),
             skips,
             velocities,
             ambient: f3(scene.ambient),
@@ -368,7 +527,7 @@ impl GpuScene {
             b(self.normals.len(), size_of::<GpuTriangleNormals>()),
             b(self.materials.len(), size_of::<GpuMaterial>()),
             b(self.lights.len(), size_of::<GpuLight>()),
-            b(self.nodes.len(), size_of::<GpuBvhNode>()),
+            b(self.nodes.len(), size_of::<GpuWideNode>()),
             b(self.prim_refs.len(), 4),
             b(self.velocities.len(), 16),
             b(self.skips.len(), 4),
@@ -412,5 +571,118 @@ pub fn padded<T: Pod + Default>(items: &[T]) -> std::borrow::Cow<'_, [u8]> {
         std::borrow::Cow::Owned(bytemuck::bytes_of(&T::default()).to_vec())
     } else {
         std::borrow::Cow::Borrowed(bytemuck::cast_slice(items))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::cpu::wide::{collapse_nodes, tests::scene, Node4};
+    use glam::Vec4;
+
+    /// (low, high) of each lane's box by axis, as the shader decodes them.
+    fn decoded(g: &GpuWideNode) -> [[(f32, f32); 4]; 3] {
+        let exps = g.origin[3].to_bits();
+        let highs = [g.lo_hi[3], g.hi_yz[0], g.hi_yz[1]];
+        std::array::from_fn(|a| {
+            let step = f32::from_bits(((exps >> (8 * a)) & 0xff) << 23);
+            let at =
+                |word: u32, lane: usize| g.origin[a] + ((word >> (8 * lane)) & 0xff) as f32 * step;
+            std::array::from_fn(|l| (at(g.lo_hi[a], l), at(highs[a], l)))
+        })
+    }
+
+    #[test]
+    fn quantised_boxes_hold_their_children_tightly() {
+        let mut state = 11u32;
+        let mut unit = || {
+            state = crate::cpu::sample::hash_u32(state);
+            state as f32 / u32::MAX as f32
+        };
+        for case in 0..4000 {
+            // Scales from 2^-10 to 2^14 (render space), flat boxes, one to
+            // four lanes in use.
+            let scale = 2f32.powi((case % 25) - 10);
+            let used = 1 + case as usize % 4;
+            let mut n = Node4 {
+                lo: [Vec4::INFINITY; 3],
+                hi: [Vec4::INFINITY; 3],
+                child: [WIDE_EMPTY; 4],
+            };
+            let centre = [unit(), unit(), unit()].map(|c| (c - 0.5) * 4.0 * scale);
+            for l in 0..used {
+                n.child[l] = l as u32 + 1;
+                for (a, c) in centre.iter().enumerate() {
+                    let lo = c + (unit() - 0.5) * scale;
+                    let size = if case % 7 == 0 { 0.0 } else { unit() * scale };
+                    n.lo[a][l] = lo;
+                    n.hi[a][l] = lo + size;
+                }
+            }
+            let g = quantise(&n);
+            assert_eq!(g.child, n.child);
+            let boxes = decoded(&g);
+            for (a, axis) in boxes.iter().enumerate() {
+                let span = (0..used).map(|l| n.hi[a][l]).fold(f32::MIN, f32::max)
+                    - (0..used).map(|l| n.lo[a][l]).fold(f32::MAX, f32::min);
+                // One step is at most span / 127.5 (a power of two at most
+                // twice span / 255), or the least step when span is 0.
+                let step = (span / 127.5).max(f32::from_bits(1 << 23));
+                for (l, &(lo, hi)) in axis.iter().enumerate().take(used) {
+                    let (want_lo, want_hi) = (n.lo[a][l], n.hi[a][l]);
+                    assert!(
+                        lo <= want_lo && hi >= want_hi,
+                        "case {case} axis {a} lane {l}"
+                    );
+                    assert!(
+                        want_lo - lo <= 1.01 * step,
+                        "case {case}: low {lo} for {want_lo}"
+                    );
+                    assert!(
+                        hi - want_hi <= 1.01 * step,
+                        "case {case}: high {hi} for {want_hi}"
+                    );
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn every_leaf_lane_runs_over_one_binary_leaf() {
+        for n in [1, 2, 5, 100, 3000] {
+            let scene = scene(n);
+            let bvh = Bvh::build(&scene);
+            let gpu = GpuScene::pack(&scene, &bvh);
+            let wide = collapse_nodes(&bvh, |leaf| WIDE_LEAF | leaf.right_or_first);
+            assert_eq!(gpu.nodes.len(), wide.len());
+            let mut runs = Vec::new();
+            for (g, w) in gpu.nodes.iter().zip(&wide) {
+                assert_eq!(g.child, w.child);
+                for &c in g
+                    .child
+                    .iter()
+                    .filter(|&&c| c != WIDE_EMPTY && c & WIDE_LEAF != 0)
+                {
+                    let first = (c & !WIDE_LEAF) as usize;
+                    let len = gpu.prim_refs[first..]
+                        .iter()
+                        .position(|r| r & LEAF_END != 0)
+                        .expect("every run ends")
+                        + 1;
+                    runs.push((first as u32, len as u32));
+                }
+            }
+            runs.sort();
+            let mut want: Vec<_> = bvh
+                .nodes
+                .iter()
+                .filter(|n| n.count > 0)
+                .map(|n| (n.right_or_first, n.count))
+                .collect();
+            want.sort();
+            assert_eq!(runs, want, "{n} triangles");
+            let refs: Vec<u32> = gpu.prim_refs.iter().map(|r| r & !LEAF_END).collect();
+            assert_eq!(refs, bvh.prim_refs);
+        }
     }
 }

@@ -114,7 +114,7 @@ fn structs_match() {
         GpuLight,
         [position, kind, color, radius, edge_u, skip_first, edge_v, skip_count, velocity, _pad2]
     );
-    check_struct!(m, "BvhNode", GpuBvhNode, [min, right_or_first, max, count]);
+    check_struct!(m, "WideNode", GpuWideNode, [origin, lo_hi, hi_yz, child]);
 }
 
 #[test]
@@ -126,7 +126,7 @@ fn bindings_match_the_pipeline_and_array_strides_match_rust() {
         (3, size_of::<GpuTriangle>()),
         (4, size_of::<GpuTriangleNormals>()),
         (5, size_of::<GpuLight>()),
-        (6, size_of::<GpuBvhNode>()),
+        (6, size_of::<GpuWideNode>()),
         (7, size_of::<u32>()),
         (8, 16),
         (9, 16),
@@ -206,6 +206,13 @@ fn shared_constants_match() {
     let m = shader();
     assert_eq!(constant(&m, "SPHERE_BIT"), Literal::U32(SPHERE_BIT));
     assert_eq!(constant(&m, "BVH_MAX_DEPTH"), Literal::U32(BVH_MAX_DEPTH));
+    assert_eq!(
+        constant(&m, "TRAVERSAL_STACK"),
+        Literal::U32(TRAVERSAL_STACK)
+    );
+    assert_eq!(constant(&m, "WIDE_LEAF"), Literal::U32(WIDE_LEAF));
+    assert_eq!(constant(&m, "WIDE_EMPTY"), Literal::U32(WIDE_EMPTY));
+    assert_eq!(constant(&m, "LEAF_END"), Literal::U32(LEAF_END));
     assert_eq!(constant(&m, "WORKGROUP_SIZE"), Literal::U32(WORKGROUP_SIZE));
     assert_eq!(
         constant(&m, "NO_HIT"),

@@ -81,13 +81,17 @@ pub const STACK: usize = 3 * crate::layout::BVH_MAX_DEPTH as usize + 4;
 /// f32, None for a sphere (or always None where leaves are not tested in
 /// SIMD).
 pub fn collapse(bvh: &Bvh, corners: impl Fn(u32) -> Option<[[f32; 3]; 3]>) -> WideBvh {
-    let mut out = WideBvh {
-        nodes: Vec::with_capacity(bvh.nodes.len() / 3 + 1),
-        leaves: Vec::with_capacity(bvh.nodes.len() / 2 + 1),
-    };
-    if !bvh.nodes.is_empty() {
-        collapse_node(&bvh.nodes, 0, &mut out);
-    }
+    let mut leaves = Vec::with_capacity(bvh.nodes.len() / 2 + 1);
+    let nodes = collapse_nodes(bvh, |n| {
+        leaves.push(LeafBlock {
+            p: [[Vec4::ZERO; 3]; 3],
+            first: n.right_or_first,
+            count: n.count,
+            simd: false,
+        });
+        LEAF | (leaves.len() - 1) as u32
+    });
+    let mut out = WideBvh { nodes, leaves };
     for leaf in &mut out.leaves {
         let refs = &bvh.prim_refs[leaf.first as usize..(leaf.first + leaf.count) as usize];
         if refs.len() > 4 {
@@ -112,9 +116,26 @@ pub fn collapse(bvh: &Bvh, corners: impl Fn(u32) -> Option<[[f32; 3]; 3]>) -> Wi
     out
 }
 
-fn collapse_node(bin: &[GpuBvhNode], index: usize, out: &mut WideBvh) -> u32 {
-    let slot = out.nodes.len();
-    out.nodes.push(Node4::EMPTY);
+/// The collapsed nodes alone (root first; empty for an empty tree), each
+/// leaf lane holding the word `leaf` makes of the binary leaf: the CPU's
+/// `LeafBlock` index, or the shader's primitive-reference run
+/// (`layout::GpuScene::pack`).
+pub fn collapse_nodes(bvh: &Bvh, mut leaf: impl FnMut(&GpuBvhNode) -> u32) -> Vec<Node4> {
+    let mut nodes = Vec::with_capacity(bvh.nodes.len() / 3 + 1);
+    if !bvh.nodes.is_empty() {
+        collapse_node(&bvh.nodes, 0, &mut nodes, &mut leaf);
+    }
+    nodes
+}
+
+fn collapse_node(
+    bin: &[GpuBvhNode],
+    index: usize,
+    out: &mut Vec<Node4>,
+    leaf: &mut impl FnMut(&GpuBvhNode) -> u32,
+) -> u32 {
+    let slot = out.len();
+    out.push(Node4::EMPTY);
     let interior = |i: usize| bin[i].count == 0;
     let area = |i: usize| {
         let n = &bin[i];
@@ -145,19 +166,13 @@ fn collapse_node(bin: &[GpuBvhNode], index: usize, out: &mut WideBvh) -> u32 {
             node.lo[a][lane] = bin[k].min[a];
             node.hi[a][lane] = bin[k].max[a];
         }
-        if interior(k) {
-            node.child[lane] = collapse_node(bin, k, out);
+        node.child[lane] = if interior(k) {
+            collapse_node(bin, k, out, leaf)
         } else {
-            node.child[lane] = LEAF | out.leaves.len() as u32;
-            out.leaves.push(LeafBlock {
-                p: [[Vec4::ZERO; 3]; 3],
-                first: bin[k].right_or_first,
-                count: bin[k].count,
-                simd: false,
-            });
-        }
+            leaf(&bin[k])
+        };
     }
-    out.nodes[slot] = node;
+    out[slot] = node;
     slot as u32
 }
 
@@ -268,12 +283,13 @@ pub fn hit_boxes_f64(
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
     use crate::scene::{Material, Scene, Triangle, Vertex};
     use glam::DVec3;
 
-    fn scene(n: usize) -> Scene {
+    /// `n` random triangles in front of the camera.
+    pub(crate) fn scene(n: usize) -> Scene {
         let mut state = 7u32;
         let mut next = || {
             state = crate::cpu::sample::hash_u32(state);

@@ -32,9 +32,9 @@ use crate::camera::Camera;
 use crate::framebuffer::Framebuffer;
 use crate::info::Features;
 use crate::layout::{
-    padded, GpuBvhNode, GpuMaterial, GpuPixelState, GpuScene, GpuStatus, GpuTile, GpuTriangle,
-    GpuTriangleNormals, PATH_HEADER, PATH_PER_LIGHT, SPLIT_CHUNKS, SPLIT_FIRST, SPLIT_LISTS,
-    WORKGROUP_SIZE,
+    padded, GpuMaterial, GpuPixelState, GpuScene, GpuStatus, GpuTile, GpuTriangle,
+    GpuTriangleNormals, GpuWideNode, PATH_HEADER, PATH_PER_LIGHT, SPLIT_CHUNKS, SPLIT_FIRST,
+    SPLIT_LISTS, WORKGROUP_SIZE,
 };
 use crate::methods::Methods;
 use crate::probe::{PathRecord, ProbeImage};
@@ -56,7 +56,7 @@ const SPLIT_STRIDES: [u64; 4] = [
     std::mem::size_of::<GpuTriangle>() as u64,
     std::mem::size_of::<GpuTriangleNormals>() as u64,
     std::mem::size_of::<GpuMaterial>() as u64,
-    std::mem::size_of::<GpuBvhNode>() as u64,
+    std::mem::size_of::<GpuWideNode>() as u64,
 ];
 
 /// How one render lays the `SPLIT_LISTS` over bindings.

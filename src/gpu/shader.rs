@@ -154,10 +154,77 @@ pub fn spirv(
         fake_missing_bindings: true,
         ..spv::Options::default()
     };
-    spv::write_vec(&module, &info, &options, None).map_err(|e| ShaderError {
+    let words = spv::write_vec(&module, &info, &options, None).map_err(|e| ShaderError {
         what: format!("{} methods, features {}", methods.name(), features.label()),
         message: format!("SPIR-V generation: {e}"),
+    })?;
+    Ok(unfill_local_arrays(&words))
+}
+
+/// Function-scope arrays the shader writes before it reads any element, so
+/// that they need no zero fill (`unfill_local_arrays`); a test holds the
+/// shader to this list.
+pub const UNFILLED_ARRAYS: [&str; 1] = ["groups"];
+
+const OP_TYPE_ARRAY: u32 = 28;
+const OP_TYPE_POINTER: u32 = 32;
+const OP_CONSTANT_NULL: u32 = 46;
+const OP_VARIABLE: u32 = 59;
+const STORAGE_FUNCTION: u32 = 7;
+/// Words before the first instruction of a SPIR-V module.
+const HEADER_WORDS: usize = 5;
+
+/// The (opcode, operands) of each instruction after the header.
+fn instructions(words: &[u32]) -> impl Iterator<Item = (u32, &[u32])> {
+    let mut at = HEADER_WORDS;
+    std::iter::from_fn(move || {
+        let head = *words.get(at)?;
+        let len = ((head >> 16) as usize).max(1);
+        let operands = words.get(at + 1..at + len)?;
+        at += len;
+        Some((head & 0xffff, operands))
     })
+}
+
+/// Drops the zero fill from every function-scope array variable.
+///
+/// WGSL zero-fills each function variable, and naga writes that as an
+/// `OpConstantNull` initialiser, which a driver must honour each time the
+/// function is entered unless it can prove the fill dead. For the traversal
+/// stack (`UNFILLED_ARRAYS`, written before read) it cannot, and on lavapipe
+/// (Mesa 22.3) the fill was a store per element and lane on every ray,
+/// about a fifth of SIGGRAPH's render time. Scalars and structs keep their
+/// fill.
+pub fn unfill_local_arrays(words: &[u32]) -> Vec<u32> {
+    let mut arrays = HashSet::new();
+    let mut nulls = HashSet::new();
+    let mut array_pointers = HashSet::new();
+    for (op, o) in instructions(words) {
+        match op {
+            OP_TYPE_ARRAY => {
+                arrays.insert(o[0]);
+            }
+            OP_TYPE_POINTER if o[1] == STORAGE_FUNCTION && arrays.contains(&o[2]) => {
+                array_pointers.insert(o[0]);
+            }
+            OP_CONSTANT_NULL => {
+                nulls.insert(o[1]);
+            }
+            _ => {}
+        }
+    }
+    let mut out = words[..HEADER_WORDS.min(words.len())].to_vec();
+    for (op, o) in instructions(words) {
+        let unfill = op == OP_VARIABLE
+            && o.len() == 4
+            && o[2] == STORAGE_FUNCTION
+            && array_pointers.contains(&o[0])
+            && nulls.contains(&o[3]);
+        let o = if unfill { &o[..3] } else { o };
+        out.push(((o.len() as u32 + 1) << 16) | op);
+        out.extend_from_slice(o);
+    }
+    out
 }
 
 /// The module's constants and their initialisers, borrowed beside its
@@ -342,6 +409,63 @@ mod tests {
         for name in ["triangles3", "normals3", "materials3", "nodes3"] {
             assert!(used.iter().any(|n| n == name), "{name} unused: {used:?}");
         }
+    }
+
+    /// Function-scope variables of array type, by name, over every function
+    /// and entry point.
+    fn local_arrays(m: &Module) -> Vec<String> {
+        let functions = m.functions.iter().map(|(_, f)| f);
+        let mut names: Vec<String> = functions
+            .chain(m.entry_points.iter().map(|ep| &ep.function))
+            .flat_map(|f| f.local_variables.iter())
+            .filter(|(_, v)| matches!(m.types[v.ty].inner, naga::TypeInner::Array { .. }))
+            .map(|(_, v)| v.name.clone().unwrap_or_default())
+            .collect();
+        names.sort();
+        names.dedup();
+        names
+    }
+
+    #[test]
+    fn only_arrays_written_before_read_go_unfilled() {
+        // A new function-scope array must be shown to be written before it
+        // is read, and listed, or it would read leftovers where WGSL
+        // promises zeros.
+        let (m, _) = parsed().unwrap();
+        assert_eq!(local_arrays(m), UNFILLED_ARRAYS.to_vec());
+    }
+
+    /// (Function-scope variables with an initialiser whose type is an
+    /// array, those whose type is not, all instructions.)
+    fn fills(words: &[u32]) -> (usize, usize, usize) {
+        let arrays: HashSet<u32> = instructions(words)
+            .filter(|&(op, _)| op == OP_TYPE_ARRAY)
+            .map(|(_, o)| o[0])
+            .collect();
+        let pointee: std::collections::HashMap<u32, u32> = instructions(words)
+            .filter(|&(op, _)| op == OP_TYPE_POINTER)
+            .map(|(_, o)| (o[0], o[2]))
+            .collect();
+        let filled = instructions(words)
+            .filter(|&(op, o)| op == OP_VARIABLE && o[2] == STORAGE_FUNCTION && o.len() == 4);
+        let (a, other): (Vec<_>, Vec<_>) =
+            filled.partition(|(_, o)| arrays.contains(&pointee[&o[0]]));
+        (a.len(), other.len(), instructions(words).count())
+    }
+
+    #[test]
+    fn unfilling_drops_the_array_fills_and_nothing_else() {
+        let (module, info) =
+            specialize(Methods::Robust, Features::ALL, Variant::default()).unwrap();
+        let raw = spv::write_vec(&module, &info, &spv::Options::default(), None).unwrap();
+        let (arrays, other, count) = fills(&raw);
+        assert!(arrays >= 1 && other >= 1, "{arrays} {other}");
+        let unfilled = unfill_local_arrays(&raw);
+        assert_eq!(fills(&unfilled), (0, other, count));
+        assert_eq!(unfilled.len(), raw.len() - arrays);
+        assert_eq!(unfilled[..HEADER_WORDS], raw[..HEADER_WORDS]);
+        let shipped = spirv(Methods::Robust, Features::ALL, Variant::default()).unwrap();
+        assert_eq!(fills(&shipped).0, 0);
     }
 
     #[test]
