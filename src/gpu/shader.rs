@@ -166,11 +166,11 @@ pub fn spirv(
 /// shader to this list.
 pub const UNFILLED_ARRAYS: [&str; 1] = ["groups"];
 
-const OP_TYPE_ARRAY: u32 = 28;
-const OP_TYPE_POINTER: u32 = 32;
-const OP_CONSTANT_NULL: u32 = 46;
-const OP_VARIABLE: u32 = 59;
-const STORAGE_FUNCTION: u32 = 7;
+const OP_TYPE_ARRAY: u32 = spirv::Op::TypeArray as u32;
+const OP_TYPE_POINTER: u32 = spirv::Op::TypePointer as u32;
+const OP_CONSTANT_NULL: u32 = spirv::Op::ConstantNull as u32;
+const OP_VARIABLE: u32 = spirv::Op::Variable as u32;
+const STORAGE_FUNCTION: u32 = spirv::StorageClass::Function as u32;
 /// Words before the first instruction of a SPIR-V module.
 const HEADER_WORDS: usize = 5;
 
