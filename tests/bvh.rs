@@ -190,42 +190,72 @@ fn assert_same_image(what: &str, a: &Framebuffer, b: &Framebuffer) {
     assert_within(what, a, b, &cmp, 0);
 }
 
-#[test]
-fn bvh_traversal_equals_brute_force() {
+/// `scene` rendered through its BVH and through one leaf holding
+/// everything gives the same image, on the CPU in both precisions and on
+/// the GPU.
+fn assert_bvh_equals_brute_force(name: &str, scene: &Scene) {
     let (w, h) = (160, 120);
     let camera = Camera::new(w, h);
-    for seed in [11, 12] {
-        let scene = random_scene(seed, 120, 300);
-        let bvh = Bvh::build(&scene);
-        let brute = single_leaf(&scene, &bvh);
-        for precision in [Precision::F32, Precision::F64] {
-            let options = glint::cpu::CpuOptions {
-                background: WHITE,
-                precision,
+    let bvh = Bvh::build(scene);
+    let brute = single_leaf(scene, &bvh);
+    for precision in [Precision::F32, Precision::F64] {
+        let options = glint::cpu::CpuOptions {
+            background: WHITE,
+            precision,
+            ..Default::default()
+        };
+        let a = glint::cpu::render(scene, &bvh, &camera, &options, &|_, _| {});
+        let b = glint::cpu::render(scene, &brute, &camera, &options, &|_, _| {});
+        assert_same_image(&format!("{name}-cpu-{precision:?}"), &a, &b);
+    }
+    if let Some(gpu) = gpu() {
+        let gpu = gpu.lock().unwrap_or_else(|e| e.into_inner());
+        let render = |bvh: &Bvh| {
+            let packed = GpuScene::pack(scene, bvh);
+            let options = GpuRenderOptions {
+                tile_size: 64,
                 ..Default::default()
             };
-            let a = glint::cpu::render(&scene, &bvh, &camera, &options, &|_, _| {});
-            let b = glint::cpu::render(&scene, &brute, &camera, &options, &|_, _| {});
-            assert_same_image(&format!("bvh-vs-brute-{seed}-cpu-{precision:?}"), &a, &b);
-        }
-        if let Some(gpu) = gpu() {
-            let gpu = gpu.lock().unwrap_or_else(|e| e.into_inner());
-            let render = |bvh: &Bvh| {
-                let packed = GpuScene::pack(&scene, bvh);
-                let options = GpuRenderOptions {
-                    tile_size: 64,
-                    ..Default::default()
-                };
-                gpu.renderer
-                    .render(&packed, &camera, WHITE, &options, &|_, _| {})
-                    .expect("GPU render")
-                    .0
-            };
-            assert_same_image(
-                &format!("bvh-vs-brute-{seed}-gpu"),
-                &render(&bvh),
-                &render(&brute),
-            );
-        }
+            gpu.renderer
+                .render(&packed, &camera, WHITE, &options, &|_, _| {})
+                .expect("GPU render")
+                .0
+        };
+        assert_same_image(&format!("{name}-gpu"), &render(&bvh), &render(&brute));
     }
+}
+
+#[test]
+fn bvh_traversal_equals_brute_force() {
+    for seed in [11, 12] {
+        let scene = random_scene(seed, 120, 300);
+        assert_bvh_equals_brute_force(&format!("bvh-vs-brute-{seed}"), &scene);
+    }
+}
+
+/// Spheres each half the size of the last and twice as near one point: the
+/// SAH peels a few off a level, so the tree (built in f64) runs to the
+/// depth cap, where the rest share one leaf: walks 64 levels deep, into a
+/// leaf of many references. The smallest spheres are below f32's range and
+/// render as points, on both sides alike.
+#[test]
+fn a_tree_at_the_depth_cap_equals_brute_force() {
+    let mut scene = random_scene(5, 0, 0);
+    let material = material(&mut Lcg(3));
+    for i in 0..300 {
+        let s = 0.5f64.powi(i);
+        scene.spheres.push(Sphere {
+            center: DVec3::new(s, s, -4.0),
+            radius: 0.3 * s,
+            material,
+            velocity: DVec3::ZERO,
+        });
+    }
+    let bvh = Bvh::build(&scene);
+    assert!(
+        bvh.depth + 1 >= BVH_MAX_DEPTH,
+        "depth {}: not at the cap",
+        bvh.depth
+    );
+    assert_bvh_equals_brute_force("depth-cap", &scene);
 }
