@@ -364,15 +364,20 @@ impl QuantAxis {
         axis
     }
 
+    /// The power of two one byte stands for.
+    fn step(self) -> f32 {
+        f32::from_bits(self.biased << 23)
+    }
+
     /// The bound byte `k` stands for. `k * step` is exact (8 bits times a
     /// power of two), so a fused multiply-add gives the same.
     fn at(self, k: u32) -> f32 {
-        self.origin + k as f32 * f32::from_bits(self.biased << 23)
+        self.origin + k as f32 * self.step()
     }
 
     /// The largest byte whose bound is at most `x`.
     fn below(self, x: f32) -> u32 {
-        let step = f64::from(f32::from_bits(self.biased << 23));
+        let step = f64::from(self.step());
         let guess = ((f64::from(x) - f64::from(self.origin)) / step).floor();
         let mut k = guess.clamp(0.0, 255.0) as u32;
         while k > 0 && self.at(k) > x {
@@ -383,7 +388,7 @@ impl QuantAxis {
 
     /// The smallest byte whose bound is at least `x` (255 where none is).
     fn above(self, x: f32) -> u32 {
-        let step = f64::from(f32::from_bits(self.biased << 23));
+        let step = f64::from(self.step());
         let guess = ((f64::from(x) - f64::from(self.origin)) / step).ceil();
         let mut k = guess.clamp(0.0, 255.0) as u32;
         while k < 255 && self.at(k) < x {

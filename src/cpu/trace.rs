@@ -601,7 +601,8 @@ fn traverse_from<R: Real>(
         let node = &scene.wide.nodes[entry as usize];
         let (mut mask, t) = R::hit_boxes(ray, node, best.t);
         // Hit lanes onto the stack, farthest first, so the nearest is
-        // popped next; the order is fixed by t, then lane.
+        // popped next; the order is fixed by t, then lane. The shader's
+        // `traverse` keeps the same order (its `order`, `append_hit`).
         let mut lanes = [0usize; 4];
         let mut n = 0;
         while mask != 0 {

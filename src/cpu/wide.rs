@@ -16,11 +16,13 @@ use crate::bvh::Bvh;
 use crate::layout::GpuBvhNode;
 
 /// `Node4::child` of a lane that holds a leaf: this bit plus the index of
-/// its `LeafBlock`.
-pub const LEAF: u32 = 1 << 31;
+/// its `LeafBlock` (the shader's tree, collapsed by the same code, puts its
+/// first primitive reference there instead). One constant for both trees:
+/// `layout::GpuScene::pack` copies the child words as they are.
+pub const LEAF: u32 = crate::layout::WIDE_LEAF;
 /// `Node4::child` of an unused lane (its box is at +infinity, so no ray
-/// hits it; see `Node4::EMPTY`).
-pub const EMPTY: u32 = u32::MAX;
+/// hits it; see `Node4::EMPTY`); the shader's `WIDE_EMPTY`.
+pub const EMPTY: u32 = crate::layout::WIDE_EMPTY;
 
 /// Four children: their boxes by axis and lane (`lo[axis][lane]`), then per
 /// lane a node index, `LEAF | block`, or `EMPTY`. 112 bytes.
