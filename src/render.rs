@@ -161,11 +161,27 @@ pub struct Renderer {
 /// A scene made ready for rendering on one `Renderer` (`prepare_scene`).
 pub struct PreparedScene {
     prepared: Prepared,
-    packed: Option<GpuScene>,
+    packed: Packed,
     /// The scene in view space, when its camera moved it.
     view: Option<Scene>,
     /// What preparing took (BVH build, packing).
     pub timings: Timings,
+}
+
+/// The scene as the backend reads it, built once per prepared scene: the
+/// GPU's buffers or the CPU reference's geometry.
+enum Packed {
+    Gpu(GpuScene),
+    Cpu(cpu::Geometry),
+}
+
+impl Packed {
+    fn cpu(&self) -> Option<&cpu::Geometry> {
+        match self {
+            Packed::Cpu(g) => Some(g),
+            Packed::Gpu(_) => None,
+        }
+    }
 }
 
 /// Per scene: the camera and the BVH (over the shutter interval when the
@@ -374,7 +390,7 @@ impl Renderer {
         let mut timings = self.take_setup_timings();
         let p = self.prepare(scene, &mut timings);
         let packed = self.pack(scene, &p, &mut timings);
-        self.render_prepared(scene, &p, packed.as_ref(), timings, region, progress)
+        self.render_prepared(scene, &p, &packed, timings, region, progress)
     }
 
     /// Makes `scene` ready for repeated renders (camera, BVH, packed data),
@@ -407,7 +423,7 @@ impl Renderer {
         self.render_prepared(
             ready.view.as_ref().unwrap_or(scene),
             &ready.prepared,
-            ready.packed.as_ref(),
+            &ready.packed,
             timings,
             Region::All,
             progress,
@@ -447,8 +463,7 @@ impl Renderer {
             } else {
                 Region::Blocks(&blocks)
             };
-            let out =
-                self.render_prepared(scene, &p, packed.as_ref(), pass_timings, region, &|_, _| {})?;
+            let out = self.render_prepared(scene, &p, &packed, pass_timings, region, &|_, _| {})?;
             acc.add_where(&out.framebuffer, &|x, y| blocks.is_active(x, y));
             match last.as_mut() {
                 None => last = Some(out),
@@ -505,11 +520,17 @@ impl Renderer {
             .unwrap_or_default()
     }
 
-    /// The scene as the GPU reads it (None on the CPU).
-    fn pack(&self, scene: &Scene, p: &Prepared, timings: &mut Timings) -> Option<GpuScene> {
+    /// The scene as the backend reads it: packed into the GPU's buffers, or
+    /// the CPU reference's geometry in its precision.
+    fn pack(&self, scene: &Scene, p: &Prepared, timings: &mut Timings) -> Packed {
         match &self.engine {
-            Engine::Gpu { .. } => Some(timings.time("pack", || GpuScene::pack(scene, &p.bvh))),
-            Engine::Cpu(_) => None,
+            Engine::Gpu { .. } => {
+                Packed::Gpu(timings.time("pack", || GpuScene::pack(scene, &p.bvh)))
+            }
+            Engine::Cpu(precision) => {
+                let options = self.cpu_options(p, *precision);
+                Packed::Cpu(timings.time("pack", || cpu::prepare(scene, &p.bvh, &options)))
+            }
         }
     }
 
@@ -517,21 +538,18 @@ impl Renderer {
         &self,
         scene: &Scene,
         p: &Prepared,
-        packed: Option<&GpuScene>,
+        packed: &Packed,
         mut timings: Timings,
         region: Region,
         progress: &(dyn Fn(u64, u64) + Sync),
     ) -> Result<RenderOutput, Error> {
         let mut need = MemoryNeed::image(p.camera.width, p.camera.height);
-        let packed_here;
         let framebuffer = match &self.engine {
             Engine::Gpu { renderer, ctx } => {
                 let packed = match packed {
-                    Some(packed) => packed,
-                    None => {
-                        packed_here = timings.time("pack", || GpuScene::pack(scene, &p.bvh));
-                        &packed_here
-                    }
+                    Packed::Gpu(packed) => packed,
+                    // `pack` made it for this engine.
+                    Packed::Cpu(_) => unreachable!("a GPU render of CPU geometry"),
                 };
                 let device_type = ctx.info().device_type.as_str();
                 let host_device = matches!(device_type, "CPU" | "integrated GPU");
@@ -573,6 +591,7 @@ impl Renderer {
                 let (framebuffer, rays) = cpu::render_where(
                     scene,
                     &p.bvh,
+                    packed.cpu(),
                     &p.camera,
                     &options,
                     &|x, y| region.keeps(x, y),

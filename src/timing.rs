@@ -35,6 +35,11 @@ impl Timings {
         out
     }
 
+    /// The time recorded under `name`, if any.
+    pub fn phase(&self, name: &str) -> Option<Duration> {
+        self.phases.iter().find(|(n, _)| *n == name).map(|p| p.1)
+    }
+
     pub fn total(&self) -> Duration {
         self.phases.iter().map(|p| p.1).sum()
     }

@@ -32,6 +32,11 @@ pub struct SceneResult {
     pub name: String,
     pub primitives: usize,
     pub bvh: Stat,
+    /// Per backend ("GPU", "f32", "f64"), the one-off time to put the
+    /// scene in the form it renders from (the GPU's packed buffers, the
+    /// CPU's primitives in its precision and its wide tree), which the
+    /// render times leave out.
+    pub pack: Vec<(&'static str, Duration)>,
     /// Rays one render casts (closest-hit and shadow), as counted by the
     /// last backend that rendered it; all backends cast the same rays.
     pub rays: Option<u64>,
@@ -110,6 +115,7 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
             name: name.clone(),
             primitives: scene.primitive_count(),
             bvh: bvh_stat,
+            pack: Vec::new(),
             gpu: None,
             cpu_f32: None,
             cpu_f64: None,
@@ -123,6 +129,9 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
         if let Some(r) = &gpu {
             pipelines += r.prepare_pipeline(&scene)?;
             let ready = r.prepare_scene(&scene);
+            result
+                .pack
+                .extend(ready.timings.phase("pack").map(|d| ("GPU", d)));
             // One untimed render first: drivers compile lazily on first use.
             let first = r.render_prepared_scene(&scene, &ready, &|_, _| {})?;
             result.rays = count(&first.timings).or(result.rays);
@@ -132,12 +141,15 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
             })?;
             progress(&format!("{name}: gpu {:.1} ms", ms(result.gpu)));
         }
-        for (renderer, slot) in [
-            (cpu_f32.as_ref(), &mut result.cpu_f32),
-            (cpu_f64.as_ref(), &mut result.cpu_f64),
+        for (renderer, slot, label) in [
+            (cpu_f32.as_ref(), &mut result.cpu_f32, "f32"),
+            (cpu_f64.as_ref(), &mut result.cpu_f64, "f64"),
         ] {
             if let Some(r) = renderer {
                 let ready = r.prepare_scene(&scene);
+                result
+                    .pack
+                    .extend(ready.timings.phase("pack").map(|d| (label, d)));
                 let mut rays = None;
                 *slot = repeat(n, || {
                     let out = r.render_prepared_scene(&scene, &ready, &|_, _| {})?;
@@ -194,6 +206,17 @@ impl BenchReport {
     pub fn to_markdown(&self) -> String {
         let mut out = String::new();
         let cell = |s: Option<Stat>| s.map_or_else(|| "-".into(), |s| s.to_string());
+        let pack = |p: &[(&str, Duration)]| {
+            let cells: Vec<String> = p
+                .iter()
+                .map(|(label, d)| format!("{label} {:.1}", d.as_secs_f64() * 1e3))
+                .collect();
+            if cells.is_empty() {
+                "-".into()
+            } else {
+                cells.join(" · ")
+            }
+        };
         let timed = |s: Option<Stat>, rays: Option<u64>| match (s, rays) {
             (Some(s), Some(r)) => format!(
                 "{s} · {:.2} Mray/s",
@@ -217,17 +240,18 @@ impl BenchReport {
         let _ = writeln!(out);
         let _ = writeln!(
             out,
-            "| scene | primitives | rays | BVH build | GPU render | CPU f32 | CPU f64 |"
+            "| scene | primitives | rays | BVH build | pack, once | GPU render | CPU f32 | CPU f64 |"
         );
-        let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|---:|");
+        let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|---:|---:|");
         for s in &self.scenes {
             let _ = writeln!(
                 out,
-                "| {} | {} | {} | {} | {} | {} | {} |",
+                "| {} | {} | {} | {} | {} | {} | {} | {} |",
                 s.name,
                 s.primitives,
                 s.rays.map_or_else(|| "-".into(), |r| r.to_string()),
                 cell(Some(s.bvh)),
+                pack(&s.pack),
                 timed(s.gpu, s.rays),
                 timed(s.cpu_f32, s.rays),
                 timed(s.cpu_f64, s.rays)

@@ -18,7 +18,8 @@ use crate::methods::Methods;
 use crate::probe::{PathLight, PathRecord, PathSurface, ProbeImage, ProbePixel};
 use crate::scene::{Effects, Scene};
 use trace::{
-    centre_key, light_term, pixel_color, pixel_ray, surface_point, trace_primary, CpuScene,
+    centre_key, light_term, pixel_color, pixel_ray, surface_point, trace_primary, CpuGeometry,
+    CpuScene,
 };
 
 /// Arithmetic precision of the CPU reference.
@@ -61,15 +62,17 @@ pub fn render(
     options: &CpuOptions,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Framebuffer {
-    render_where(scene, bvh, camera, options, &|_, _| true, progress).0
+    render_where(scene, bvh, None, camera, options, &|_, _| true, progress).0
 }
 
 /// As `render`, only the pixels `keep` says (the others are 0): the CPU
 /// twin of the GPU's `render_rects`. Also returns the closest-hit and
-/// shadow rays cast.
+/// shadow rays cast. `geometry`, where given, is `prepare`'s for this
+/// scene, BVH and options (its precision wins); else it is built here.
 pub fn render_where(
     scene: &Scene,
     bvh: &Bvh,
+    geometry: Option<&Geometry>,
     camera: &Camera,
     options: &CpuOptions,
     keep: &(dyn Fn(u32, u32) -> bool + Sync),
@@ -79,13 +82,21 @@ pub fn render_where(
         R::v3_to_f32(R::clamp01(pixel_color(s, x, y)))
     }
     let pixel = |x: u32, y: u32, f: &dyn Fn() -> [f32; 3]| if keep(x, y) { f() } else { [0.0; 3] };
-    let (pixels, rays) = match options.precision {
-        Precision::F32 => {
-            let s = CpuScene::<f32>::new(scene, bvh, camera, options);
+    let built;
+    let geometry = match geometry {
+        Some(g) => g,
+        None => {
+            built = prepare(scene, bvh, options);
+            &built
+        }
+    };
+    let (pixels, rays) = match geometry {
+        Geometry::F32(g) => {
+            let s = CpuScene::with_geometry(scene, bvh, g, camera, options);
             per_pixel(&s, progress, |s, x, y| pixel(x, y, &|| colour(s, x, y)))
         }
-        Precision::F64 => {
-            let s = CpuScene::<f64>::new(scene, bvh, camera, options);
+        Geometry::F64(g) => {
+            let s = CpuScene::with_geometry(scene, bvh, g, camera, options);
             per_pixel(&s, progress, |s, x, y| pixel(x, y, &|| colour(s, x, y)))
         }
     };
@@ -95,6 +106,23 @@ pub fn render_where(
         pixels,
     };
     (fb, rays)
+}
+
+/// A scene's primitives and wide tree as the CPU reference reads them, in
+/// the precision it renders in: built once per prepared scene, as the GPU
+/// packs its buffers once, so that a render (or a progressive pass) pays
+/// only for its rays.
+pub enum Geometry {
+    F32(CpuGeometry<f32>),
+    F64(CpuGeometry<f64>),
+}
+
+/// `scene` (in view space) and its BVH, for renders with `options`.
+pub fn prepare(scene: &Scene, bvh: &Bvh, options: &CpuOptions) -> Geometry {
+    match options.precision {
+        Precision::F32 => Geometry::F32(CpuGeometry::new(scene, bvh, &options.effects)),
+        Precision::F64 => Geometry::F64(CpuGeometry::new(scene, bvh, &options.effects)),
+    }
 }
 
 /// Each pixel's primary hit and shadow verdicts, as the shader's `probe_tile`.

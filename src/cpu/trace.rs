@@ -2,6 +2,8 @@
 //! (`shaders/trace.wgsl`), generic over f32 (the shader's twin) and f64.
 //! Comments on the why live in the shader; this file stays a mirror of it.
 
+use std::borrow::Cow;
+
 use crate::bvh::Bvh;
 use crate::camera::Camera;
 use crate::info::Features;
@@ -9,7 +11,7 @@ use crate::layout::{
     FLAG_NONFINITE_COLOR, FLAG_NONFINITE_SURFACE, LIGHT_POINT, LIGHT_RECT, LIGHT_SPHERE, SPHERE_BIT,
 };
 use crate::methods::Methods;
-use crate::scene::{LightShape, Scene};
+use crate::scene::{Effects, LightShape, Scene};
 
 use super::real::Real;
 use super::sample::{
@@ -58,17 +60,20 @@ pub struct Light<R: Real> {
 }
 
 /// The scene as the CPU reference reads it: the shader's buffers, in `R`.
-/// The BVH is shared with the GPU (f32 boxes, rounded outward).
+/// The BVH is shared with the GPU (f32 boxes, rounded outward). The
+/// per-primitive arrays and the wide tree are borrowed from a
+/// `CpuGeometry` built once per prepared scene (`render::Renderer`), as the
+/// GPU packs its buffers once, or owned when built for one render.
 pub struct CpuScene<'a, R: Real> {
-    pub spheres: Vec<Sphere<R>>,
-    pub triangles: Vec<[R::V3; 3]>,
-    pub triangle_velocity: Vec<R::V3>,
-    pub shading: Vec<[VertexShading<R>; 3]>,
-    pub materials: Vec<SurfaceMaterial<R>>,
+    pub spheres: Cow<'a, [Sphere<R>]>,
+    pub triangles: Cow<'a, [[R::V3; 3]]>,
+    pub triangle_velocity: Cow<'a, [R::V3]>,
+    pub shading: Cow<'a, [[VertexShading<R>; 3]]>,
+    pub materials: Cow<'a, [SurfaceMaterial<R>]>,
     pub lights: Vec<Light<R>>,
     /// The BVH collapsed to four children a node, with its leaves'
     /// triangles in blocks for the SIMD test (`wide`).
-    pub wide: WideBvh,
+    pub wide: Cow<'a, WideBvh>,
     pub prim_refs: &'a [u32],
     /// Per light, the surfaces through it (`lights_on_surfaces`).
     pub surfaces_at_lights: &'a [Vec<u32>],
@@ -88,15 +93,29 @@ pub struct CpuScene<'a, R: Real> {
     pub shutter: R,
 }
 
-impl<'a, R: Real> CpuScene<'a, R> {
-    pub fn new(scene: &Scene, bvh: &'a Bvh, camera: &Camera, options: &CpuOptions) -> Self {
+/// What of a `CpuScene` grows with the scene: its primitives in `R` and the
+/// wide tree. It depends on the scene, its BVH and whether the scene moves,
+/// not on the camera, seed or samples, so one serves every render of a
+/// prepared scene (and every pass of a progressive one).
+#[derive(Clone)]
+pub struct CpuGeometry<R: Real> {
+    spheres: Vec<Sphere<R>>,
+    triangles: Vec<[R::V3; 3]>,
+    triangle_velocity: Vec<R::V3>,
+    shading: Vec<[VertexShading<R>; 3]>,
+    materials: Vec<SurfaceMaterial<R>>,
+    wide: WideBvh,
+    motion_blur: bool,
+}
+
+impl<R: Real> CpuGeometry<R> {
+    /// `scene` in view space and the BVH built for it with `effects`.
+    pub fn new(scene: &Scene, bvh: &Bvh, effects: &Effects) -> Self {
         // f64 -> R once, as the GPU packing does for f32, in the BVH's
         // render space.
         let scene = &*scene.in_render_space(bvh.scale);
         let v = R::v3_from_f64;
-        let effects = &options.effects;
         let features = Features::of(scene, effects);
-        let half_extent = camera.half_extent.map(R::from_f64);
         // The f32 corners are the f32 path's own (`v` rounds the same way);
         // none where `R` tests leaves one triangle at a time.
         let corners = |r: u32| {
@@ -106,7 +125,7 @@ impl<'a, R: Real> CpuScene<'a, R> {
                 .filter(|_| R::SIMD_LEAVES && r & SPHERE_BIT == 0)?;
             Some(t.vertices.map(|x| x.position.as_vec3().to_array()))
         };
-        CpuScene {
+        CpuGeometry {
             spheres: scene
                 .spheres
                 .iter()
@@ -149,9 +168,90 @@ impl<'a, R: Real> CpuScene<'a, R> {
                     shininess: R::from_f64(m.shininess),
                 })
                 .collect(),
+            wide: super::wide::collapse(bvh, corners),
+            motion_blur: features.motion_blur,
+        }
+    }
+}
+
+impl<'a, R: Real> CpuScene<'a, R> {
+    /// For one render: builds its own geometry.
+    pub fn new(scene: &Scene, bvh: &'a Bvh, camera: &Camera, options: &CpuOptions) -> Self {
+        let g = CpuGeometry::new(scene, bvh, &options.effects);
+        Self::with(
+            scene,
+            bvh,
+            camera,
+            options,
+            Parts {
+                spheres: Cow::Owned(g.spheres),
+                triangles: Cow::Owned(g.triangles),
+                triangle_velocity: Cow::Owned(g.triangle_velocity),
+                shading: Cow::Owned(g.shading),
+                materials: Cow::Owned(g.materials),
+                wide: Cow::Owned(g.wide),
+                motion_blur: g.motion_blur,
+            },
+        )
+    }
+
+    /// Over `geometry`, which `CpuGeometry::new` built for this scene and BVH.
+    pub fn with_geometry(
+        scene: &Scene,
+        bvh: &'a Bvh,
+        geometry: &'a CpuGeometry<R>,
+        camera: &Camera,
+        options: &CpuOptions,
+    ) -> Self {
+        let g = geometry;
+        Self::with(
+            scene,
+            bvh,
+            camera,
+            options,
+            Parts {
+                spheres: Cow::Borrowed(&g.spheres),
+                triangles: Cow::Borrowed(&g.triangles),
+                triangle_velocity: Cow::Borrowed(&g.triangle_velocity),
+                shading: Cow::Borrowed(&g.shading),
+                materials: Cow::Borrowed(&g.materials),
+                wide: Cow::Borrowed(&g.wide),
+                motion_blur: g.motion_blur,
+            },
+        )
+    }
+
+    fn with(
+        scene: &Scene,
+        bvh: &'a Bvh,
+        camera: &Camera,
+        options: &CpuOptions,
+        parts: Parts<'a, R>,
+    ) -> Self {
+        let v = R::v3_from_f64;
+        let effects = &options.effects;
+        let Parts {
+            spheres,
+            triangles,
+            triangle_velocity,
+            shading,
+            materials,
+            wide,
+            motion_blur,
+        } = parts;
+        CpuScene {
+            spheres,
+            triangles,
+            triangle_velocity,
+            shading,
+            materials,
+            wide,
+            // Lights and ambient only: the rest of the scene is in
+            // `parts`, already in render space.
             lights: scene
                 .lights
                 .iter()
+                .map(|l| l.scaled(bvh.scale))
                 .map(|l| {
                     let zero = R::v3(R::ZERO, R::ZERO, R::ZERO);
                     let (kind, radius, edge_u, edge_v) = match l.shape {
@@ -174,27 +274,37 @@ impl<'a, R: Real> CpuScene<'a, R> {
                     }
                 })
                 .collect(),
-            wide: super::wide::collapse(bvh, corners),
             surfaces_at_lights: &bvh.surfaces_at_lights,
             prim_refs: &bvh.prim_refs,
             ambient: v(scene.ambient),
             background: R::v3_from_f32(options.background),
-            half_extent,
+            half_extent: camera.half_extent.map(R::from_f64),
             size: [camera.width, camera.height],
             methods: options.methods,
-            motion_blur: features.motion_blur,
+            motion_blur,
             seed: effects.seed,
             spp: effects.spp,
             shadow_samples: effects.shadow_samples,
             reflect_depth: effects.reflect_depth,
             // Rounded to f32 first, as the GPU's uniform holds it.
-            shutter: if features.motion_blur {
+            shutter: if motion_blur {
                 R::from_f64(f64::from(effects.shutter_seconds() as f32))
             } else {
                 R::ZERO
             },
         }
     }
+}
+
+/// A `CpuScene`'s geometry, owned or borrowed.
+struct Parts<'a, R: Real> {
+    spheres: Cow<'a, [Sphere<R>]>,
+    triangles: Cow<'a, [[R::V3; 3]]>,
+    triangle_velocity: Cow<'a, [R::V3]>,
+    shading: Cow<'a, [[VertexShading<R>; 3]]>,
+    materials: Cow<'a, [SurfaceMaterial<R>]>,
+    wide: Cow<'a, WideBvh>,
+    motion_blur: bool,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -568,20 +678,44 @@ pub fn traverse<R: Real>(
     if scene.wide.nodes.is_empty() {
         return best;
     }
-    STACK.with_borrow_mut(|stack| {
-        stack.clear();
-        stack.push((0, 0.0));
-        traverse_from(scene, ray, &mut best, any_hit, skip, graze, stack);
-    });
+    let mut stack = Stack::new();
+    stack.push(0, R::ZERO);
+    traverse_from(scene, ray, &mut best, any_hit, skip, graze, &mut stack);
     best
 }
 
-thread_local! {
-    /// `traverse`'s stack: nodes to visit with their entry t (exact in f64
-    /// for both precisions). Kept per thread, because a fresh array per ray
-    /// cost a tenth of the render in clearing it.
-    static STACK: std::cell::RefCell<Vec<(u32, f64)>> =
-        std::cell::RefCell::new(Vec::with_capacity(wide::STACK));
+/// `traverse`'s stack: nodes to visit with their entry t. Left
+/// uninitialised, because clearing a fresh array per ray cost a tenth of
+/// the render, and a stack kept per thread cost its lookups.
+struct Stack<R: Real> {
+    items: [std::mem::MaybeUninit<(u32, R)>; wide::STACK],
+    len: usize,
+}
+
+impl<R: Real> Stack<R> {
+    fn new() -> Self {
+        Stack {
+            items: [std::mem::MaybeUninit::uninit(); wide::STACK],
+            len: 0,
+        }
+    }
+
+    #[inline(always)]
+    fn push(&mut self, node: u32, t: R) {
+        // Indexed with a bounds check: `wide::STACK` bounds the depth.
+        self.items[self.len] = std::mem::MaybeUninit::new((node, t));
+        self.len += 1;
+    }
+
+    #[inline(always)]
+    fn pop(&mut self) -> Option<(u32, R)> {
+        if self.len == 0 {
+            return None;
+        }
+        self.len -= 1;
+        // SAFETY: items[..len] were all written by `push`.
+        Some(unsafe { self.items[self.len].assume_init() })
+    }
 }
 
 #[allow(clippy::too_many_arguments)]
@@ -592,10 +726,10 @@ fn traverse_from<R: Real>(
     any_hit: bool,
     skip: &[u32],
     graze: R,
-    stack: &mut Vec<(u32, f64)>,
+    stack: &mut Stack<R>,
 ) {
     while let Some((entry, t_entry)) = stack.pop() {
-        if t_entry > (best.t * R::BOX_T_SCALE).to_f64() {
+        if t_entry > best.t * R::BOX_T_SCALE {
             continue;
         }
         let node = &scene.wide.nodes[entry as usize];
@@ -638,7 +772,7 @@ fn traverse_from<R: Real>(
         for &lane in &lanes[..n] {
             let child = node.child[lane];
             if child & wide::LEAF == 0 {
-                stack.push((child, t[lane].to_f64()));
+                stack.push(child, t[lane]);
             }
         }
     }

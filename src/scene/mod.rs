@@ -87,6 +87,25 @@ pub struct Light {
 }
 
 impl Light {
+    /// The light in a space `factor` times larger (`Scene::scaled`).
+    pub fn scaled(&self, factor: f64) -> Light {
+        Light {
+            position: self.position * factor,
+            velocity: self.velocity * factor,
+            shape: match self.shape {
+                LightShape::Point => LightShape::Point,
+                LightShape::Sphere { radius } => LightShape::Sphere {
+                    radius: radius * factor,
+                },
+                LightShape::Rect { edge_u, edge_v } => LightShape::Rect {
+                    edge_u: edge_u * factor,
+                    edge_v: edge_v * factor,
+                },
+            },
+            ..*self
+        }
+    }
+
     /// A classic point light.
     pub fn point(position: DVec3, color: DVec3) -> Light {
         Light {
@@ -524,18 +543,7 @@ impl Scene {
             }
         }
         for l in &mut s.lights {
-            l.position *= factor;
-            l.velocity *= factor;
-            l.shape = match l.shape {
-                LightShape::Point => LightShape::Point,
-                LightShape::Sphere { radius } => LightShape::Sphere {
-                    radius: radius * factor,
-                },
-                LightShape::Rect { edge_u, edge_v } => LightShape::Rect {
-                    edge_u: edge_u * factor,
-                    edge_v: edge_v * factor,
-                },
-            };
+            *l = l.scaled(factor);
         }
         for sphere in &mut s.spheres {
             sphere.velocity *= factor;
