@@ -233,17 +233,18 @@ fn bvh_traversal_equals_brute_force() {
     }
 }
 
-/// Spheres each half the size of the last and twice as near one point: the
-/// SAH peels a few off a level, so the tree (built in f64) runs to the
-/// depth cap, where the rest share one leaf: walks 64 levels deep, into a
-/// leaf of many references. The smallest spheres are below f32's range and
-/// render as points, on both sides alike.
+/// Spheres each 0.7 times the size of the last and as much nearer one
+/// point: the SAH peels a few off a level, so the tree (binned on f32
+/// centroids, distinct down to 0.7^250) runs to the depth cap, where the
+/// rest share one leaf: walks 64 levels deep, into a leaf of many
+/// references. The smallest spheres are below f32's range and render as
+/// points, on both sides alike.
 #[test]
 fn a_tree_at_the_depth_cap_equals_brute_force() {
     let mut scene = random_scene(5, 0, 0);
     let material = material(&mut Lcg(3));
     for i in 0..300 {
-        let s = 0.5f64.powi(i);
+        let s = 0.7f64.powi(i);
         scene.spheres.push(Sphere {
             center: DVec3::new(s, s, -4.0),
             radius: 0.3 * s,
