@@ -400,24 +400,32 @@ fn split(prims: &mut [Prim], extent: Extent) -> (usize, [Extent; 2]) {
             }
         }
     }
-    let mid = match best {
+    match best {
         Some((_, axis, plane)) => partition(prims, |p| bins_of(p.centroid)[axis] <= plane),
         // All centroids coincide (or no plane separates them): split by count so
         // that oversized leaves cannot happen.
-        None => prims.len() / 2,
-    };
-    (mid, [Extent::of(&prims[..mid]), Extent::of(&prims[mid..])])
-}
-
-fn partition(prims: &mut [Prim], left: impl Fn(&Prim) -> bool) -> usize {
-    let mut mid = 0;
-    for i in 0..prims.len() {
-        if left(&prims[i]) {
-            prims.swap(i, mid);
-            mid += 1;
+        None => {
+            let mid = prims.len() / 2;
+            (mid, [Extent::of(&prims[..mid]), Extent::of(&prims[mid..])])
         }
     }
-    mid
+}
+
+/// Moves the primitives `left` takes before the others; returns where the
+/// others start and both sides' extents, gathered on the way.
+fn partition(prims: &mut [Prim], left: impl Fn(&Prim) -> bool) -> (usize, [Extent; 2]) {
+    let mut mid = 0;
+    let (mut l, mut r) = (Extent::EMPTY, Extent::EMPTY);
+    for i in 0..prims.len() {
+        if left(&prims[i]) {
+            l = l.add(&prims[i]);
+            prims.swap(i, mid);
+            mid += 1;
+        } else {
+            r = r.add(&prims[i]);
+        }
+    }
+    (mid, [l, r])
 }
 
 fn node(b: Box3, first: u32, count: u32) -> GpuBvhNode {

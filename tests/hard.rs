@@ -270,10 +270,12 @@ fn primitives_f32_cannot_resolve_are_named() {
 /// ends traversal without a hit instead of looping.
 #[test]
 fn nan_ray_terminates() {
-    use glint::cpu::trace::{make_ray, traverse, CpuScene, NO_HIT};
+    use glint::cpu::trace::{make_ray, traverse, CpuGeometry, CpuScene, NO_HIT};
     let c = case("quad_grid");
     let bvh = Bvh::build(&c.scene);
-    let scene = CpuScene::<f32>::new(&c.scene, &bvh, &Camera::new(8, 8), &Default::default());
+    let geometry = CpuGeometry::<f32>::new(&c.scene, &bvh, &Default::default());
+    let camera = Camera::new(8, 8);
+    let scene = CpuScene::new(&c.scene, &bvh, &geometry, &camera, &Default::default());
     for dir in [
         glam::Vec3::new(f32::NAN, 0.0, -1.0),
         glam::Vec3::NAN,

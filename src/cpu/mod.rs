@@ -92,11 +92,11 @@ pub fn render_where(
     };
     let (pixels, rays) = match geometry {
         Geometry::F32(g) => {
-            let s = CpuScene::with_geometry(scene, bvh, g, camera, options);
+            let s = CpuScene::new(scene, bvh, g, camera, options);
             per_pixel(&s, progress, |s, x, y| pixel(x, y, &|| colour(s, x, y)))
         }
         Geometry::F64(g) => {
-            let s = CpuScene::with_geometry(scene, bvh, g, camera, options);
+            let s = CpuScene::new(scene, bvh, g, camera, options);
             per_pixel(&s, progress, |s, x, y| pixel(x, y, &|| colour(s, x, y)))
         }
     };
@@ -141,14 +141,14 @@ pub fn probe(scene: &Scene, bvh: &Bvh, camera: &Camera, options: &CpuOptions) ->
         background: [0.0; 3],
         ..*options
     };
-    let (pixels, _) = match options.precision {
-        Precision::F32 => per_pixel(
-            &CpuScene::<f32>::new(scene, bvh, camera, &options),
+    let (pixels, _) = match &prepare(scene, bvh, &options) {
+        Geometry::F32(g) => per_pixel(
+            &CpuScene::new(scene, bvh, g, camera, &options),
             none,
             record,
         ),
-        Precision::F64 => per_pixel(
-            &CpuScene::<f64>::new(scene, bvh, camera, &options),
+        Geometry::F64(g) => per_pixel(
+            &CpuScene::new(scene, bvh, g, camera, &options),
             none,
             record,
         ),
@@ -168,9 +168,9 @@ pub fn pixel_path(
     options: &CpuOptions,
     pixel: [u32; 2],
 ) -> PathRecord {
-    match options.precision {
-        Precision::F32 => path_in(&CpuScene::<f32>::new(scene, bvh, camera, options), pixel),
-        Precision::F64 => path_in(&CpuScene::<f64>::new(scene, bvh, camera, options), pixel),
+    match &prepare(scene, bvh, options) {
+        Geometry::F32(g) => path_in(&CpuScene::new(scene, bvh, g, camera, options), pixel),
+        Geometry::F64(g) => path_in(&CpuScene::new(scene, bvh, g, camera, options), pixel),
     }
 }
 

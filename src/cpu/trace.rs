@@ -2,8 +2,6 @@
 //! (`shaders/trace.wgsl`), generic over f32 (the shader's twin) and f64.
 //! Comments on the why live in the shader; this file stays a mirror of it.
 
-use std::borrow::Cow;
-
 use crate::bvh::Bvh;
 use crate::camera::Camera;
 use crate::info::Features;
@@ -61,19 +59,19 @@ pub struct Light<R: Real> {
 
 /// The scene as the CPU reference reads it: the shader's buffers, in `R`.
 /// The BVH is shared with the GPU (f32 boxes, rounded outward). The
-/// per-primitive arrays and the wide tree are borrowed from a
-/// `CpuGeometry` built once per prepared scene (`render::Renderer`), as the
-/// GPU packs its buffers once, or owned when built for one render.
+/// per-primitive arrays and the wide tree are a `CpuGeometry`'s, built
+/// once per prepared scene (`render::Renderer`), as the GPU packs its
+/// buffers once.
 pub struct CpuScene<'a, R: Real> {
-    pub spheres: Cow<'a, [Sphere<R>]>,
-    pub triangles: Cow<'a, [[R::V3; 3]]>,
-    pub triangle_velocity: Cow<'a, [R::V3]>,
-    pub shading: Cow<'a, [[VertexShading<R>; 3]]>,
-    pub materials: Cow<'a, [SurfaceMaterial<R>]>,
+    pub spheres: &'a [Sphere<R>],
+    pub triangles: &'a [[R::V3; 3]],
+    pub triangle_velocity: &'a [R::V3],
+    pub shading: &'a [[VertexShading<R>; 3]],
+    pub materials: &'a [SurfaceMaterial<R>],
     pub lights: Vec<Light<R>>,
     /// The BVH collapsed to four children a node, with its leaves'
     /// triangles in blocks for the SIMD test (`wide`).
-    pub wide: Cow<'a, WideBvh>,
+    pub wide: &'a WideBvh,
     pub prim_refs: &'a [u32],
     /// Per light, the surfaces through it (`lights_on_surfaces`).
     pub surfaces_at_lights: &'a [Vec<u32>],
@@ -175,79 +173,27 @@ impl<R: Real> CpuGeometry<R> {
 }
 
 impl<'a, R: Real> CpuScene<'a, R> {
-    /// For one render: builds its own geometry.
-    pub fn new(scene: &Scene, bvh: &'a Bvh, camera: &Camera, options: &CpuOptions) -> Self {
-        let g = CpuGeometry::new(scene, bvh, &options.effects);
-        Self::with(
-            scene,
-            bvh,
-            camera,
-            options,
-            Parts {
-                spheres: Cow::Owned(g.spheres),
-                triangles: Cow::Owned(g.triangles),
-                triangle_velocity: Cow::Owned(g.triangle_velocity),
-                shading: Cow::Owned(g.shading),
-                materials: Cow::Owned(g.materials),
-                wide: Cow::Owned(g.wide),
-                motion_blur: g.motion_blur,
-            },
-        )
-    }
-
     /// Over `geometry`, which `CpuGeometry::new` built for this scene and BVH.
-    pub fn with_geometry(
+    pub fn new(
         scene: &Scene,
         bvh: &'a Bvh,
         geometry: &'a CpuGeometry<R>,
         camera: &Camera,
         options: &CpuOptions,
     ) -> Self {
-        let g = geometry;
-        Self::with(
-            scene,
-            bvh,
-            camera,
-            options,
-            Parts {
-                spheres: Cow::Borrowed(&g.spheres),
-                triangles: Cow::Borrowed(&g.triangles),
-                triangle_velocity: Cow::Borrowed(&g.triangle_velocity),
-                shading: Cow::Borrowed(&g.shading),
-                materials: Cow::Borrowed(&g.materials),
-                wide: Cow::Borrowed(&g.wide),
-                motion_blur: g.motion_blur,
-            },
-        )
-    }
-
-    fn with(
-        scene: &Scene,
-        bvh: &'a Bvh,
-        camera: &Camera,
-        options: &CpuOptions,
-        parts: Parts<'a, R>,
-    ) -> Self {
         let v = R::v3_from_f64;
         let effects = &options.effects;
-        let Parts {
-            spheres,
-            triangles,
-            triangle_velocity,
-            shading,
-            materials,
-            wide,
-            motion_blur,
-        } = parts;
+        let g = geometry;
+        let motion_blur = g.motion_blur;
         CpuScene {
-            spheres,
-            triangles,
-            triangle_velocity,
-            shading,
-            materials,
-            wide,
+            spheres: &g.spheres,
+            triangles: &g.triangles,
+            triangle_velocity: &g.triangle_velocity,
+            shading: &g.shading,
+            materials: &g.materials,
+            wide: &g.wide,
             // Lights and ambient only: the rest of the scene is in
-            // `parts`, already in render space.
+            // `geometry`, already in render space.
             lights: scene
                 .lights
                 .iter()
@@ -294,17 +240,6 @@ impl<'a, R: Real> CpuScene<'a, R> {
             },
         }
     }
-}
-
-/// A `CpuScene`'s geometry, owned or borrowed.
-struct Parts<'a, R: Real> {
-    spheres: Cow<'a, [Sphere<R>]>,
-    triangles: Cow<'a, [[R::V3; 3]]>,
-    triangle_velocity: Cow<'a, [R::V3]>,
-    shading: Cow<'a, [[VertexShading<R>; 3]]>,
-    materials: Cow<'a, [SurfaceMaterial<R>]>,
-    wide: Cow<'a, WideBvh>,
-    motion_blur: bool,
 }
 
 #[derive(Clone, Copy, Debug)]

@@ -381,11 +381,12 @@ pub(crate) mod tests {
     /// every primitive, in both precisions.
     #[test]
     fn traversal_finds_what_testing_everything_finds() {
-        use crate::cpu::trace::{hit_triangle, make_ray, traverse, CpuScene};
+        use crate::cpu::trace::{hit_triangle, make_ray, traverse, CpuGeometry, CpuScene};
         use crate::cpu::{CpuOptions, Real};
         fn check<R: Real>(scene: &Scene, bvh: &Bvh) {
             let camera = crate::camera::Camera::new(64, 48);
-            let cpu = CpuScene::<R>::new(scene, bvh, &camera, &CpuOptions::default());
+            let geometry = CpuGeometry::<R>::new(scene, bvh, &Default::default());
+            let cpu = CpuScene::new(scene, bvh, &geometry, &camera, &CpuOptions::default());
             let mut state = 11u32;
             let mut next = || {
                 state = crate::cpu::sample::hash_u32(state);
