@@ -371,18 +371,19 @@ fn split(prims: &mut [Prim], extent: Extent) -> (usize, [Extent; 2]) {
         x.to_array().map(|x| (x.to_bits() & 0xff) as usize)
     };
     // Binned on every axis the centroids spread along, in one pass.
-    let axes: Vec<usize> = (0..3).filter(|&a| width[a] > 0.0).collect();
+    let spread = [0, 1, 2].map(|a| width[a] > 0.0);
+    let axes = || (0..3).filter(|&a| spread[a]);
     let mut bins = [[(Box3::EMPTY, 0usize); BIN_COUNT]; 3];
     for p in prims.iter() {
         let at = bins_of(p.centroid);
-        for &axis in &axes {
+        for axis in axes() {
             let b = &mut bins[axis][at[axis]];
             b.0 = b.0.union(p.bounds);
             b.1 += 1;
         }
     }
     let mut best: Option<(f64, usize, usize)> = None;
-    for &axis in &axes {
+    for axis in axes() {
         let bins = &bins[axis];
         // Sweep from the right once, then from the left, pricing each split plane.
         let mut right_area = [0.0; BIN_COUNT];

@@ -175,15 +175,6 @@ enum Packed {
     Cpu(cpu::Geometry),
 }
 
-impl Packed {
-    fn cpu(&self) -> Option<&cpu::Geometry> {
-        match self {
-            Packed::Cpu(g) => Some(g),
-            Packed::Gpu(_) => None,
-        }
-    }
-}
-
 /// Per scene: the camera and the BVH (over the shutter interval when the
 /// scene has motion blur).
 struct Prepared {
@@ -544,13 +535,8 @@ impl Renderer {
         progress: &(dyn Fn(u64, u64) + Sync),
     ) -> Result<RenderOutput, Error> {
         let mut need = MemoryNeed::image(p.camera.width, p.camera.height);
-        let framebuffer = match &self.engine {
-            Engine::Gpu { renderer, ctx } => {
-                let packed = match packed {
-                    Packed::Gpu(packed) => packed,
-                    // `pack` made it for this engine.
-                    Packed::Cpu(_) => unreachable!("a GPU render of CPU geometry"),
-                };
+        let framebuffer = match (&self.engine, packed) {
+            (Engine::Gpu { renderer, ctx }, Packed::Gpu(packed)) => {
                 let device_type = ctx.info().device_type.as_str();
                 let host_device = matches!(device_type, "CPU" | "integrated GPU");
                 let texels = crate::gpu::tile_texels(
@@ -584,14 +570,14 @@ impl Renderer {
                 timings.extend(&gpu_timings);
                 framebuffer
             }
-            Engine::Cpu(precision) => {
+            (Engine::Cpu(precision), Packed::Cpu(geometry)) => {
                 need.check(memory::available())?;
                 let start = Instant::now();
                 let options = self.cpu_options(p, *precision);
                 let (framebuffer, rays) = cpu::render_where(
                     scene,
                     &p.bvh,
-                    packed.cpu(),
+                    geometry,
                     &p.camera,
                     &options,
                     &|x, y| region.keeps(x, y),
@@ -602,6 +588,8 @@ impl Renderer {
                 timings.count(crate::timing::SHADOW_RAYS, rays[1]);
                 framebuffer
             }
+            // `pack` makes each engine its own.
+            _ => unreachable!("a scene packed for another backend"),
         };
         Ok(RenderOutput {
             framebuffer,

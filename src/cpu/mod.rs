@@ -62,17 +62,27 @@ pub fn render(
     options: &CpuOptions,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Framebuffer {
-    render_where(scene, bvh, None, camera, options, &|_, _| true, progress).0
+    let geometry = prepare(scene, bvh, options);
+    render_where(
+        scene,
+        bvh,
+        &geometry,
+        camera,
+        options,
+        &|_, _| true,
+        progress,
+    )
+    .0
 }
 
 /// As `render`, only the pixels `keep` says (the others are 0): the CPU
 /// twin of the GPU's `render_rects`. Also returns the closest-hit and
-/// shadow rays cast. `geometry`, where given, is `prepare`'s for this
-/// scene, BVH and options (its precision wins); else it is built here.
+/// shadow rays cast. `geometry` is `prepare`'s for this scene and BVH; its
+/// precision is the render's.
 pub fn render_where(
     scene: &Scene,
     bvh: &Bvh,
-    geometry: Option<&Geometry>,
+    geometry: &Geometry,
     camera: &Camera,
     options: &CpuOptions,
     keep: &(dyn Fn(u32, u32) -> bool + Sync),
@@ -82,14 +92,6 @@ pub fn render_where(
         R::v3_to_f32(R::clamp01(pixel_color(s, x, y)))
     }
     let pixel = |x: u32, y: u32, f: &dyn Fn() -> [f32; 3]| if keep(x, y) { f() } else { [0.0; 3] };
-    let built;
-    let geometry = match geometry {
-        Some(g) => g,
-        None => {
-            built = prepare(scene, bvh, options);
-            &built
-        }
-    };
     let (pixels, rays) = match geometry {
         Geometry::F32(g) => {
             let s = CpuScene::new(scene, bvh, g, camera, options);
