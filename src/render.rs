@@ -333,6 +333,7 @@ impl Renderer {
             precision,
             methods: self.options.methods,
             effects: p.effects,
+            packets: true,
         }
     }
 

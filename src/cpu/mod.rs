@@ -2,6 +2,7 @@
 //! function names), parallel over rows with rayon, in f32 (the shader's twin)
 //! or f64 (ground truth).
 
+pub mod packet;
 mod real;
 pub mod sample;
 pub mod trace;
@@ -39,6 +40,10 @@ pub struct CpuOptions {
     pub precision: Precision,
     pub methods: Methods,
     pub effects: Effects,
+    /// Whether f32 renders may trace a row's rays in packets
+    /// (`packet::applies`); off, every ray goes alone. The image is the
+    /// same up to which of two hits at exactly the same t is kept.
+    pub packets: bool,
 }
 
 impl Default for CpuOptions {
@@ -48,6 +53,7 @@ impl Default for CpuOptions {
             precision: Precision::F32,
             methods: Methods::Robust,
             effects: Effects::default(),
+            packets: true,
         }
     }
 }
@@ -95,7 +101,21 @@ pub fn render_where(
     let (pixels, rays) = match geometry {
         Geometry::F32(g) => {
             let s = CpuScene::new(scene, bvh, g, camera, options);
-            per_pixel(&s, progress, |s, x, y| pixel(x, y, &|| colour(s, x, y)))
+            if options.packets && packet::applies(&s) {
+                per_row(&s, progress, |s, y, row| {
+                    for (chunk, x0) in row
+                        .chunks_mut(packet::WIDTH)
+                        .zip((0..).step_by(packet::WIDTH))
+                    {
+                        let keep = (0..chunk.len() as u32)
+                            .filter(|&i| keep(x0 + i, y))
+                            .fold(0, |m, i| m | 1 << i);
+                        packet::colours(s, y, x0, keep, chunk);
+                    }
+                })
+            } else {
+                per_pixel(&s, progress, |s, x, y| pixel(x, y, &|| colour(s, x, y)))
+            }
         }
         Geometry::F64(g) => {
             let s = CpuScene::new(scene, bvh, g, camera, options);
@@ -222,15 +242,29 @@ fn path_in<R: Real>(scene: &CpuScene<R>, [x, y]: [u32; 2]) -> PathRecord {
     record
 }
 
-/// `f(scene, x, y)` for every pixel, rows in parallel, taken in
-/// `spread_order` so that `progress(rows_done, rows)` advances at an even
-/// pace: rows in order would finish the cheap sky first and the costly
-/// floor last, and an ETA from them would be wrong by the ratio. Also
+/// `f(scene, x, y)` for every pixel, rows in parallel (`per_row`). Also
 /// returns the closest-hit and shadow rays `f` cast.
 fn per_pixel<R: Real, T: Send + Default + Clone>(
     scene: &CpuScene<R>,
     progress: &(dyn Fn(u64, u64) + Sync),
     f: impl Fn(&CpuScene<R>, u32, u32) -> T + Sync,
+) -> (Vec<T>, [u64; 2]) {
+    per_row(scene, progress, |scene, y, row| {
+        for (x, px) in row.iter_mut().enumerate() {
+            *px = f(scene, x as u32, y);
+        }
+    })
+}
+
+/// `f(scene, y, row)` fills each row (`T::default()` to start with), rows
+/// in parallel, taken in `spread_order` so that `progress(rows_done, rows)`
+/// advances at an even pace: rows in order would finish the cheap sky first
+/// and the costly floor last, and an ETA from them would be wrong by the
+/// ratio. Also returns the closest-hit and shadow rays `f` cast.
+fn per_row<R: Real, T: Send + Default + Clone>(
+    scene: &CpuScene<R>,
+    progress: &(dyn Fn(u64, u64) + Sync),
+    f: impl Fn(&CpuScene<R>, u32, &mut [T]) + Sync,
 ) -> (Vec<T>, [u64; 2]) {
     use std::sync::atomic::{AtomicU64, Ordering};
     let [w, h] = scene.size;
@@ -246,9 +280,7 @@ fn per_pixel<R: Real, T: Send + Default + Clone>(
         // A row runs on one thread from start to end, so the thread's
         // counters moved by this row's rays alone.
         let before = trace::rays_cast();
-        for (x, px) in row.iter_mut().enumerate() {
-            *px = f(scene, x as u32, y);
-        }
+        f(scene, y, row);
         let after = trace::rays_cast();
         for k in 0..2 {
             rays[k].fetch_add(after[k] - before[k], Ordering::Relaxed);

@@ -267,7 +267,7 @@ thread_local! {
     static RAYS: std::cell::Cell<[u64; 2]> = const { std::cell::Cell::new([0; 2]) };
 }
 
-fn count_ray(kind: usize) {
+pub(super) fn count_ray(kind: usize) {
     RAYS.with(|r| {
         let mut v = r.get();
         v[kind] += 1;
@@ -281,6 +281,7 @@ pub fn rays_cast() -> [u64; 2] {
     RAYS.with(std::cell::Cell::get)
 }
 
+#[inline(always)]
 pub fn make_ray<R: Real>(origin: R::V3, dir: R::V3, time: R) -> Ray<R> {
     let safe = |d: R| {
         if d.abs() < R::MIN_DIR {
@@ -508,7 +509,7 @@ pub fn hit_triangle<R: Real>(ray: &Ray<R>, tri: &[R::V3; 3], t_max: R) -> (R, R,
 /// A leaf's primitives: true when an any-hit query found its hit. Up to
 /// four static triangles meet the robust test in SIMD lanes where `R` has
 /// them; the rest one by one.
-fn hit_leaf<R: Real>(
+pub(super) fn hit_leaf<R: Real>(
     scene: &CpuScene<R>,
     ray: &Ray<R>,
     leaf: &LeafBlock,
@@ -859,6 +860,21 @@ pub fn point_term<R: Real>(
     time: R,
     skip: &[u32],
 ) -> LightTerm<R> {
+    let (origin, ray, graze) = point_shadow_ray(scene, sp, target, time, skip);
+    let blocker = occluder(scene, &ray, skip, graze);
+    point_shading(sp, view, target, color, origin, blocker)
+}
+
+/// The shadow ray `point_term` casts from `sp` towards `target`: its
+/// origin, the ray (t = 1 at the target) and its grazing band.
+#[inline(always)]
+pub fn point_shadow_ray<R: Real>(
+    scene: &CpuScene<R>,
+    sp: &SurfacePoint<R>,
+    target: R::V3,
+    time: R,
+    skip: &[u32],
+) -> (R::V3, Ray<R>, R) {
     let to_light = target - sp.p;
     let side = if R::dot(sp.ng, to_light) >= R::ZERO {
         sp.ng
@@ -871,10 +887,23 @@ pub fn point_term<R: Real>(
     } else {
         in_plane_graze(sp, origin, target)
     };
+    (origin, make_ray(origin, target - origin, time), graze)
+}
+
+/// `point_term` once its shadow ray from `origin` found `blocker`.
+#[inline(always)]
+pub fn point_shading<R: Real>(
+    sp: &SurfacePoint<R>,
+    view: R::V3,
+    target: R::V3,
+    color: R::V3,
+    origin: R::V3,
+    blocker: Hit<R>,
+) -> LightTerm<R> {
     let zero = R::v3(R::ZERO, R::ZERO, R::ZERO);
     let mut term = LightTerm {
         origin,
-        blocker: occluder(scene, &make_ray(origin, target - origin, time), skip, graze),
+        blocker,
         ln: R::ZERO,
         rv: R::ZERO,
         spec: R::ZERO,
@@ -883,6 +912,7 @@ pub fn point_term<R: Real>(
     if term.blocker.prim != NO_HIT {
         return term;
     }
+    let to_light = target - sp.p;
     let l = safe_normalize::<R>(to_light, sp.n);
     term.ln = R::dot(l, sp.n);
     let r = sp.n * (R::TWO * term.ln) - l;
@@ -1074,7 +1104,7 @@ pub fn radiance<R: Real>(scene: &CpuScene<R>, primary: &Ray<R>, key: &SampleKey<
     local
 }
 
-fn reflect_path<R: Real>(
+pub(super) fn reflect_path<R: Real>(
     scene: &CpuScene<R>,
     primary: &Ray<R>,
     first_hit: Hit<R>,

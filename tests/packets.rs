@@ -1,0 +1,149 @@
+//! The CPU reference's packets (`cpu::packet`): a render whose rows go in
+//! packets of eight rays gives the image every ray traced alone gives, on
+//! every scene the packets take: the classic scenes, the project's own, the
+//! hard cases (any scale, lights on surfaces, both methods), reflections and
+//! area lights (which packets hand to single rays past the first hit).
+
+mod common;
+
+use common::*;
+use glint::bvh::Bvh;
+use glint::camera::Camera;
+use glint::cpu::packet::{self, WIDTH};
+use glint::cpu::trace::{pixel_ray, traverse, CpuScene, Ray};
+use glint::cpu::{CpuOptions, Geometry};
+use glint::methods::Methods;
+use glint::scene::{Effects, Scene};
+
+/// Renders `scene` with and without packets and asserts the images are the
+/// same, bit for bit, but at a few pixels whose primary ray meets two
+/// surfaces at the same t or an ulp or two apart (a tie, which each breaks
+/// by the order it opens leaves in, both deterministic); also that the packets took the render (so the
+/// comparison means something).
+fn assert_packets_agree(name: &str, scene: &Scene, camera: &Camera, methods: Methods) {
+    let mut effects = Effects::resolve(&scene.settings);
+    // One sample a pixel, the packets' case; the rest of the scene's
+    // settings (reflections, area lights) stay.
+    effects.spp = 1;
+    let bvh = Bvh::build(scene);
+    let options = |packets| CpuOptions {
+        methods,
+        effects,
+        packets,
+        ..CpuOptions::default()
+    };
+    let geometry = glint::cpu::prepare(scene, &bvh, &options(true));
+    let Geometry::F32(g) = &geometry else {
+        panic!("f32 geometry")
+    };
+    let taken = glint::cpu::packet::applies(&CpuScene::new(scene, &bvh, g, camera, &options(true)));
+    assert!(taken, "{name}: the packets do not take this scene");
+    let every = &|_: u32, _: u32| true;
+    // Some pixels left out, as a crop or a progressive pass leaves them.
+    let some = &|x: u32, y: u32| !(x * 7 + y * 3).is_multiple_of(5);
+    for keep in [every as &(dyn Fn(u32, u32) -> bool + Sync), some] {
+        let render = |packets| {
+            glint::cpu::render_where(
+                scene,
+                &bvh,
+                &geometry,
+                camera,
+                &options(packets),
+                keep,
+                &|_, _| {},
+            )
+        };
+        let (alone, alone_rays) = render(false);
+        let (packed, packed_rays) = render(true);
+        let width = camera.width as usize;
+        let differ: Vec<usize> = (0..alone.pixels.len())
+            .filter(|&i| alone.pixels[i] != packed.pixels[i])
+            .collect();
+        assert!(
+            differ.len() * 200 <= alone.pixels.len(),
+            "{name} ({methods:?}): {} pixels differ",
+            differ.len()
+        );
+        // Only where a primary ray meets two surfaces at exactly the same
+        // t, and the packet kept the other one.
+        let s = CpuScene::new(scene, &bvh, g, camera, &options(true));
+        for &i in &differ {
+            let (x, y) = ((i % width) as u32, (i / width) as u32);
+            let x0 = x - x % WIDTH as u32;
+            let rays: [Ray<f32>; WIDTH] =
+                std::array::from_fn(|k| pixel_ray(&s, (x0 + k as u32).min(camera.width - 1), y));
+            let lane = (x - x0) as usize;
+            // The packet as the render cast it: its lanes' pixels, kept.
+            let active = (0..WIDTH as u32)
+                .filter(|&k| x0 + k < camera.width && keep(x0 + k, y))
+                .fold(0, |m, k| m | 1 << k);
+            let packed_hit = packet::traverse(&s, &rays, active, f32::MAX, false)[lane];
+            let alone_hit = traverse(&s, &rays[lane], f32::MAX, false, &[], 0.0);
+            // The same t, or within the rounding of the triangle test's
+            // range check, which tests a candidate against the hit found so
+            // far: at a vertex several triangles meet the ray within an ulp,
+            // and which of them is found first decides which is kept.
+            let ulps = (i64::from(packed_hit.t.to_bits() as i32)
+                - i64::from(alone_hit.t.to_bits() as i32))
+            .abs();
+            assert!(
+                ulps <= 2,
+                "{name} ({methods:?}): pixel {x},{y}: {ulps} ulps apart"
+            );
+            assert_ne!(
+                packed_hit.prim, alone_hit.prim,
+                "{name}: pixel {x},{y} is no tie"
+            );
+        }
+        if !differ.is_empty() {
+            notice(&format!(
+                "{name} ({methods:?}): {} pixels keep the other of two hits at (nearly) one t",
+                differ.len()
+            ));
+        }
+        assert_eq!(alone_rays, packed_rays, "{name}: rays cast");
+    }
+}
+
+#[test]
+fn classic_scenes_render_the_same_in_packets() {
+    let Some(dir) = classic_dir() else { return };
+    for name in ["test1", "test2", "spheres", "table", "SIGGRAPH"] {
+        let scene = glint::scene::read_scene(&dir.join(format!("{name}.scene"))).expect("parses");
+        // 641 wide: the last packet of each row is a lone pixel.
+        assert_packets_agree(name, &scene, &Camera::new(641, 240), Methods::Robust);
+    }
+}
+
+#[test]
+fn own_and_effect_scenes_render_the_same_in_packets() {
+    let mut paths = own_scenes();
+    for effect in ["reflect", "soft_shadows", "all_effects"] {
+        paths.push(repo_path(&format!("scenes/effects/{effect}.scene")));
+    }
+    for path in paths {
+        let scene = glint::scene::read_scene(&path).expect("parses");
+        if scene.has_motion() {
+            continue;
+        }
+        let name = path.display().to_string();
+        assert_packets_agree(&name, &scene, &Camera::new(203, 150), Methods::Robust);
+    }
+}
+
+#[test]
+fn hard_cases_render_the_same_in_packets() {
+    let mut on_surfaces = 0;
+    for case in glint::hard::cases() {
+        on_surfaces += usize::from(
+            !Bvh::build(&case.scene)
+                .surfaces_at_lights
+                .iter()
+                .all(Vec::is_empty),
+        );
+        for methods in [Methods::Robust, Methods::Naive] {
+            assert_packets_agree(&case.name, &case.scene, &case.camera(), methods);
+        }
+    }
+    assert!(on_surfaces > 0, "no hard case has a light on a surface");
+}
