@@ -102,15 +102,25 @@ pub fn render_where(
         Geometry::F32(g) => {
             let s = CpuScene::new(scene, bvh, g, camera, options);
             if options.packets && packet::applies(&s) {
-                per_row(&s, progress, |s, y, row| {
-                    for (chunk, x0) in row
-                        .chunks_mut(packet::WIDTH)
-                        .zip((0..).step_by(packet::WIDTH))
-                    {
-                        let keep = (0..chunk.len() as u32)
-                            .filter(|&i| keep(x0 + i, y))
-                            .fold(0, |m, i| m | 1 << i);
-                        packet::colours(s, y, x0, keep, chunk);
+                let [tw, th] = packet::TILE;
+                per_band(&s, progress, th, |s, y0, band| {
+                    let w = s.size[0];
+                    let rows = band.len() as u32 / w;
+                    for x0 in (0..w).step_by(tw as usize) {
+                        let mut pixels = [[0u32; 2]; packet::WIDTH];
+                        let mut n = 0;
+                        for y in y0..y0 + rows {
+                            for x in x0..(x0 + tw).min(w) {
+                                if keep(x, y) {
+                                    pixels[n] = [x, y];
+                                    n += 1;
+                                }
+                            }
+                        }
+                        let colours = packet::colours(s, &pixels[..n]);
+                        for (&[x, y], c) in pixels[..n].iter().zip(colours) {
+                            band[((y - y0) * w + x) as usize] = c;
+                        }
                     }
                 })
             } else {
@@ -242,51 +252,59 @@ fn path_in<R: Real>(scene: &CpuScene<R>, [x, y]: [u32; 2]) -> PathRecord {
     record
 }
 
-/// `f(scene, x, y)` for every pixel, rows in parallel (`per_row`). Also
+/// `f(scene, x, y)` for every pixel, rows in parallel (`per_band`). Also
 /// returns the closest-hit and shadow rays `f` cast.
 fn per_pixel<R: Real, T: Send + Default + Clone>(
     scene: &CpuScene<R>,
     progress: &(dyn Fn(u64, u64) + Sync),
     f: impl Fn(&CpuScene<R>, u32, u32) -> T + Sync,
 ) -> (Vec<T>, [u64; 2]) {
-    per_row(scene, progress, |scene, y, row| {
-        for (x, px) in row.iter_mut().enumerate() {
+    let w = scene.size[0] as usize;
+    per_band(scene, progress, 1, |scene, y, row| {
+        for (x, px) in row[..w].iter_mut().enumerate() {
             *px = f(scene, x as u32, y);
         }
     })
 }
 
-/// `f(scene, y, row)` fills each row (`T::default()` to start with), rows
-/// in parallel, taken in `spread_order` so that `progress(rows_done, rows)`
-/// advances at an even pace: rows in order would finish the cheap sky first
-/// and the costly floor last, and an ETA from them would be wrong by the
-/// ratio. Also returns the closest-hit and shadow rays `f` cast.
-fn per_row<R: Real, T: Send + Default + Clone>(
+/// `f(scene, y0, band)` fills each band of `rows` rows from row `y0` (the
+/// last may have fewer; `T::default()` to start with), bands in parallel,
+/// taken in `spread_order` so that `progress(rows_done, rows)` advances at
+/// an even pace: rows in order would finish the cheap sky first and the
+/// costly floor last, and an ETA from them would be wrong by the ratio.
+/// Also returns the closest-hit and shadow rays `f` cast.
+fn per_band<R: Real, T: Send + Default + Clone>(
     scene: &CpuScene<R>,
     progress: &(dyn Fn(u64, u64) + Sync),
+    rows: u32,
     f: impl Fn(&CpuScene<R>, u32, &mut [T]) + Sync,
 ) -> (Vec<T>, [u64; 2]) {
     use std::sync::atomic::{AtomicU64, Ordering};
     let [w, h] = scene.size;
+    let rows = rows.max(1);
     let done = AtomicU64::new(0);
     let rays = [AtomicU64::new(0), AtomicU64::new(0)];
     let mut out = vec![T::default(); w as usize * h as usize];
-    let mut rows: Vec<Option<&mut [T]>> = out.chunks_mut(w as usize).map(Some).collect();
-    let ordered: Vec<(u32, &mut [T])> = spread_order(h)
-        .into_iter()
-        .filter_map(|y| Some((y, rows[y as usize].take()?)))
+    let mut bands: Vec<Option<&mut [T]>> = out
+        .chunks_mut((w * rows).max(1) as usize)
+        .map(Some)
         .collect();
-    ordered.into_par_iter().for_each(|(y, row)| {
-        // A row runs on one thread from start to end, so the thread's
-        // counters moved by this row's rays alone.
+    let ordered: Vec<(u32, &mut [T])> = spread_order(bands.len() as u32)
+        .into_iter()
+        .filter_map(|b| Some((b * rows, bands[b as usize].take()?)))
+        .collect();
+    ordered.into_par_iter().for_each(|(y0, band)| {
+        // A band runs on one thread from start to end, so the thread's
+        // counters moved by this band's rays alone.
         let before = trace::rays_cast();
-        f(scene, y, row);
+        let n = band.len() as u64 / u64::from(w.max(1));
+        f(scene, y0, band);
         let after = trace::rays_cast();
         for k in 0..2 {
             rays[k].fetch_add(after[k] - before[k], Ordering::Relaxed);
         }
-        let n = done.fetch_add(1, Ordering::Relaxed) + 1;
-        progress(n, u64::from(h));
+        let finished = done.fetch_add(n, Ordering::Relaxed) + n;
+        progress(finished, u64::from(h));
     });
     (out, rays.map(AtomicU64::into_inner))
 }

@@ -40,17 +40,20 @@ struct Soa {
 }
 
 impl Soa {
+    #[inline(always)]
     fn new(rays: &[Ray<f32>; WIDTH]) -> Self {
-        let lanes = |f: &dyn Fn(&Ray<f32>) -> Vec3| {
-            [0, 1, 2].map(|axis| {
-                std::array::from_fn(|h| {
-                    Vec4::from_array(std::array::from_fn(|l| f(&rays[4 * h + l])[axis]))
-                })
-            })
-        };
+        let mut o = [[[0.0f32; 4]; HALVES]; 3];
+        let mut inv = [[[0.0f32; 4]; HALVES]; 3];
+        for (r, ray) in rays.iter().enumerate() {
+            for axis in 0..3 {
+                o[axis][r / 4][r % 4] = ray.origin[axis];
+                inv[axis][r / 4][r % 4] = ray.inv_dir[axis];
+            }
+        }
+        let v = |a: [[[f32; 4]; HALVES]; 3]| a.map(|h| h.map(Vec4::from_array));
         Soa {
-            o: lanes(&|r| r.origin),
-            inv: lanes(&|r| r.inv_dir),
+            o: v(o),
+            inv: v(inv),
         }
     }
 }
@@ -94,12 +97,15 @@ pub fn traverse(
     let scale = Vec4::splat(f32::BOX_T_SCALE);
     // Rays still looking: an any-hit ray leaves once blocked.
     let mut live = active;
-    let mut stack: [Entry; wide::STACK] = [(0, 0, 0.0); wide::STACK];
-    stack[0] = (0, active, 0.0);
+    // Uninitialised, as `trace::traverse`'s: clearing it per packet showed
+    // in profiles.
+    let mut stack = [std::mem::MaybeUninit::<Entry>::uninit(); wide::STACK];
+    stack[0] = std::mem::MaybeUninit::new((0, active, 0.0));
     let mut len = 1;
     while len > 0 {
         len -= 1;
-        let (index, entered, t_entry) = stack[len];
+        // SAFETY: stack[..len + 1] were all written before `len` grew past them.
+        let (index, entered, t_entry) = unsafe { stack[len].assume_init() };
         let mask = entered & live;
         if mask == 0 {
             continue;
@@ -204,7 +210,8 @@ pub fn traverse(
         for &lane in order[..n].iter().rev() {
             let child = node.child[lane];
             if child & wide::LEAF == 0 {
-                stack[len] = (child, hits[lane], nearest[lane]);
+                // Indexed with a bounds check: `wide::STACK` bounds the depth.
+                stack[len] = std::mem::MaybeUninit::new((child, hits[lane], nearest[lane]));
                 len += 1;
                 prefetch(&scene.wide.nodes[child as usize]);
             }
@@ -238,22 +245,28 @@ pub fn applies(scene: &CpuScene<f32>) -> bool {
     scene.spp <= 1 && !scene.motion_blur
 }
 
-/// Pixels `x0..x0 + out.len()` (up to `WIDTH`) of row `y`, those whose bit
-/// is set in `keep`, as `pixel_color` colours them (clamped), the others
-/// left as they are: the primary rays as a packet, then per point light
-/// the shadow rays of the pixels that hit something; area lights, lights on
-/// surfaces and reflections one pixel at a time, as `shade_phong` and
-/// `radiance` take them.
-pub fn colours(scene: &CpuScene<f32>, y: u32, x0: u32, keep: u32, out: &mut [[f32; 3]]) {
-    let n = out.len().min(WIDTH);
-    let active = keep & ((1u32 << n) - 1);
-    if active == 0 {
-        return;
+/// A packet's pixels: a block `TILE[0]` wide and `TILE[1]` high, whose
+/// rays stay closer together than a row's eight.
+pub const TILE: [u32; 2] = [4, 2];
+
+/// The colours `pixel_color` gives `pixels` (up to `WIDTH`), clamped: the
+/// primary rays as a packet, then per point light the shadow rays of the
+/// pixels that hit something; area lights, lights on surfaces and
+/// reflections one pixel at a time, as `shade_phong` and `radiance` take
+/// them.
+pub fn colours(scene: &CpuScene<f32>, pixels: &[[u32; 2]]) -> [[f32; 3]; WIDTH] {
+    let mut out = [[0.0; 3]; WIDTH];
+    let n = pixels.len().min(WIDTH);
+    if n == 0 {
+        return out;
     }
-    // Lanes past the row's end repeat its last pixel, unused.
-    let rays: [Ray<f32>; WIDTH] =
-        std::array::from_fn(|i| pixel_ray(scene, x0 + i.min(n - 1) as u32, y));
-    for _ in 0..active.count_ones() {
+    let active = (1u32 << n) - 1;
+    // Lanes past the last pixel repeat it, unused.
+    let rays: [Ray<f32>; WIDTH] = std::array::from_fn(|i| {
+        let [x, y] = pixels[i.min(n - 1)];
+        pixel_ray(scene, x, y)
+    });
+    for _ in 0..n {
         count_ray(0);
     }
     let hits = traverse(scene, &rays, active, f32::T_INF, false);
@@ -267,7 +280,7 @@ pub fn colours(scene: &CpuScene<f32>, y: u32, x0: u32, keep: u32, out: &mut [[f3
             lit |= 1 << i;
         }
     }
-    let key = |i: usize| centre_key(scene, x0 + i as u32, y);
+    let key = |i: usize| centre_key(scene, pixels[i][0], pixels[i][1]);
     for l in 0..scene.lights.len() {
         let light = light_at(scene, l, 0.0);
         let on_surface = scene
@@ -312,9 +325,6 @@ pub fn colours(scene: &CpuScene<f32>, y: u32, x0: u32, keep: u32, out: &mut [[f3
         }
     }
     for (i, px) in out.iter_mut().enumerate().take(n) {
-        if active & (1 << i) == 0 {
-            continue;
-        }
         let local = f32::clamp01(colour[i]);
         let c = if lit & (1 << i) != 0 && scene.reflect_depth > 0 {
             reflect_path(scene, &rays[i], hits[i], local, &key(i))
@@ -323,6 +333,7 @@ pub fn colours(scene: &CpuScene<f32>, y: u32, x0: u32, keep: u32, out: &mut [[f3
         };
         *px = f32::v3_to_f32(f32::clamp01(c));
     }
+    out
 }
 
 #[cfg(test)]
