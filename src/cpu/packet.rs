@@ -30,32 +30,167 @@ use crate::layout::LIGHT_POINT;
 /// Rays in a packet.
 pub const WIDTH: usize = 8;
 
+/// SSE vectors in a packet.
 const HALVES: usize = WIDTH / 4;
 
-/// A packet's rays, by component and half (`o[axis][half]` holds rays
-/// `4 * half..4 * half + 4`).
+/// One f32 per ray of a packet, aligned for one 8-lane (AVX) load or two
+/// 4-lane (SSE) ones.
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(32))]
+struct L8([f32; WIDTH]);
+
+impl L8 {
+    #[inline(always)]
+    fn half(&self, h: usize) -> Vec4 {
+        Vec4::from_slice(&self.0[4 * h..4 * h + 4])
+    }
+
+    #[inline(always)]
+    fn set_half(&mut self, h: usize, v: Vec4) {
+        v.write_to_slice(&mut self.0[4 * h..4 * h + 4]);
+    }
+}
+
+/// A packet's rays by component.
 struct Soa {
-    o: [[Vec4; HALVES]; 3],
-    inv: [[Vec4; HALVES]; 3],
+    o: [L8; 3],
+    inv: [L8; 3],
 }
 
 impl Soa {
     #[inline(always)]
     fn new(rays: &[Ray<f32>; WIDTH]) -> Self {
-        let mut o = [[[0.0f32; 4]; HALVES]; 3];
-        let mut inv = [[[0.0f32; 4]; HALVES]; 3];
+        let mut soa = Soa {
+            o: [L8([0.0; WIDTH]); 3],
+            inv: [L8([0.0; WIDTH]); 3],
+        };
         for (r, ray) in rays.iter().enumerate() {
             for axis in 0..3 {
-                o[axis][r / 4][r % 4] = ray.origin[axis];
-                inv[axis][r / 4][r % 4] = ray.inv_dir[axis];
+                soa.o[axis].0[r] = ray.origin[axis];
+                soa.inv[axis].0[r] = ray.inv_dir[axis];
             }
         }
-        let v = |a: [[[f32; 4]; HALVES]; 3]| a.map(|h| h.map(Vec4::from_array));
-        Soa {
-            o: v(o),
-            inv: v(inv),
+        soa
+    }
+}
+
+/// A node's four children against a packet: per child lane, the rays
+/// (of `mask`) whose box test it passes, their entry t, and the nearest of
+/// those.
+struct Children {
+    hits: [u32; 4],
+    near: [L8; 4],
+    nearest: [f32; 4],
+}
+
+/// `Children` with SSE (glam's `Vec4`), four rays at a time: each lane is
+/// `wide::hit_boxes_f32`'s arithmetic for its ray, operation for operation.
+#[inline(always)]
+fn children_sse(node: &wide::Node4, soa: &Soa, mask: u32, best_t: &L8) -> Children {
+    let scale = Vec4::splat(f32::BOX_T_SCALE);
+    let mut out = Children {
+        hits: [0; 4],
+        near: [L8([0.0; WIDTH]); 4],
+        nearest: [f32::INFINITY; 4],
+    };
+    for lane in 0..4 {
+        if node.child[lane] == wide::EMPTY {
+            continue;
+        }
+        for h in 0..HALVES {
+            let m = mask >> (4 * h) & 15;
+            if m == 0 {
+                continue;
+            }
+            let slab = |axis: usize| {
+                let (o, inv) = (soa.o[axis].half(h), soa.inv[axis].half(h));
+                let t0 = (Vec4::splat(node.lo[axis][lane]) - o) * inv;
+                let t1 = (Vec4::splat(node.hi[axis][lane]) - o) * inv;
+                (t0.min(t1), t0.max(t1))
+            };
+            let (nx, fx) = slab(0);
+            let (ny, fy) = slab(1);
+            let (nz, fz) = slab(2);
+            let t_near = nx.max(ny).max(nz.max(Vec4::ZERO));
+            let t_far = fx.min(fy).min(fz.min(best_t.half(h))) * scale;
+            let hit = t_near.cmple(t_far).bitmask() & m;
+            if hit != 0 {
+                out.hits[lane] |= hit << (4 * h);
+                out.near[lane].set_half(h, t_near);
+                out.nearest[lane] = out.nearest[lane]
+                    .min(Vec4::select(LANES[hit as usize], t_near, Vec4::INFINITY).min_element());
+            }
         }
     }
+    out
+}
+
+/// `children_sse` with AVX2, all eight rays at a time: the same operations
+/// lane for lane (`_mm256_min_ps` and `_mm256_max_ps` take their operands
+/// in `Vec4::min`'s and `max`'s order, so NaNs fall the same way; `<=` is
+/// the same ordered compare), so each ray gets the same answer to the bit.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn children_avx2(node: &wide::Node4, soa: &Soa, mask: u32, best_t: &L8) -> Children {
+    use std::arch::x86_64::*;
+    let mut out = Children {
+        hits: [0; 4],
+        near: [L8([0.0; WIDTH]); 4],
+        nearest: [f32::INFINITY; 4],
+    };
+    // SAFETY: `L8` is 32-byte aligned and holds eight f32, as the aligned
+    // loads and stores need; the rest is arithmetic on registers.
+    unsafe {
+        let load = |l: &L8| _mm256_load_ps(l.0.as_ptr());
+        let o = [load(&soa.o[0]), load(&soa.o[1]), load(&soa.o[2])];
+        let inv = [load(&soa.inv[0]), load(&soa.inv[1]), load(&soa.inv[2])];
+        let bt = load(best_t);
+        let scale = _mm256_set1_ps(f32::BOX_T_SCALE);
+        let zero = _mm256_setzero_ps();
+        let inf = _mm256_set1_ps(f32::INFINITY);
+        for lane in 0..4 {
+            if node.child[lane] == wide::EMPTY {
+                continue;
+            }
+            let slab = |axis: usize| {
+                let t0 = _mm256_mul_ps(
+                    _mm256_sub_ps(_mm256_set1_ps(node.lo[axis][lane]), o[axis]),
+                    inv[axis],
+                );
+                let t1 = _mm256_mul_ps(
+                    _mm256_sub_ps(_mm256_set1_ps(node.hi[axis][lane]), o[axis]),
+                    inv[axis],
+                );
+                (_mm256_min_ps(t0, t1), _mm256_max_ps(t0, t1))
+            };
+            let (nx, fx) = slab(0);
+            let (ny, fy) = slab(1);
+            let (nz, fz) = slab(2);
+            let t_near = _mm256_max_ps(_mm256_max_ps(nx, ny), _mm256_max_ps(nz, zero));
+            let t_far = _mm256_mul_ps(
+                _mm256_min_ps(_mm256_min_ps(fx, fy), _mm256_min_ps(fz, bt)),
+                scale,
+            );
+            let passed = _mm256_cmp_ps::<_CMP_LE_OS>(t_near, t_far);
+            let hit = _mm256_movemask_ps(passed) as u32 & mask;
+            if hit != 0 {
+                out.hits[lane] = hit;
+                _mm256_store_ps(out.near[lane].0.as_mut_ptr(), t_near);
+                // The nearest entry among the rays that hit: the others at
+                // +inf, then a min across the lanes.
+                let bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+                let chosen =
+                    _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(hit as i32), bits), bits);
+                let t = _mm256_blendv_ps(inf, t_near, _mm256_castsi256_ps(chosen));
+                let m = _mm_min_ps(_mm256_castps256_ps128(t), _mm256_extractf128_ps::<1>(t));
+                let m = _mm_min_ps(m, _mm_movehl_ps(m, m));
+                let m = _mm_min_ss(m, _mm_shuffle_ps::<1>(m, m));
+                out.nearest[lane] = _mm_cvtss_f32(m);
+            }
+        }
+    }
+    out
 }
 
 /// The lanes of a 4-bit mask, for selects.
@@ -75,8 +210,40 @@ type Entry = (u32, u32, f32);
 
 /// The closest hit (`any_hit`: a blocker) before `t_max` of each ray whose
 /// bit is set in `active`; the other rays' hits say `NO_HIT`. As
-/// `trace::traverse` with no surfaces to skip and no grazing band.
+/// `trace::traverse` with no surfaces to skip and no grazing band. Tests a
+/// node's boxes eight rays at a time where the CPU has AVX2, else four.
 pub fn traverse(
+    scene: &CpuScene<f32>,
+    rays: &[Ray<f32>; WIDTH],
+    active: u32,
+    t_max: f32,
+    any_hit: bool,
+) -> [Hit<f32>; WIDTH] {
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2, checked just above.
+        return unsafe { traverse_avx2(scene, rays, active, t_max, any_hit) };
+    }
+    traverse_with::<false>(scene, rays, active, t_max, any_hit)
+}
+
+/// `traverse_with` compiled for AVX2, so its box tests inline.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn traverse_avx2(
+    scene: &CpuScene<f32>,
+    rays: &[Ray<f32>; WIDTH],
+    active: u32,
+    t_max: f32,
+    any_hit: bool,
+) -> [Hit<f32>; WIDTH] {
+    traverse_with::<true>(scene, rays, active, t_max, any_hit)
+}
+
+/// `traverse`, its box tests 8 rays at a time with AVX2 when `AVX2` (only
+/// ever true inside `traverse_avx2`).
+#[inline(always)]
+fn traverse_with<const AVX2: bool>(
     scene: &CpuScene<f32>,
     rays: &[Ray<f32>; WIDTH],
     active: u32,
@@ -93,7 +260,7 @@ pub fn traverse(
         return best;
     }
     let soa = Soa::new(rays);
-    let mut best_t = [Vec4::splat(t_max); HALVES];
+    let mut best_t = L8([t_max; WIDTH]);
     let scale = Vec4::splat(f32::BOX_T_SCALE);
     // Rays still looking: an any-hit ray leaves once blocked.
     let mut live = active;
@@ -116,7 +283,7 @@ pub fn traverse(
             .map(|h| {
                 Vec4::select(
                     LANES[(mask >> (4 * h) & 15) as usize],
-                    best_t[h],
+                    best_t.half(h),
                     Vec4::NEG_INFINITY,
                 )
                 .max_element()
@@ -126,40 +293,24 @@ pub fn traverse(
             continue;
         }
         let node = &scene.wide.nodes[index as usize];
-        // Per child lane: the rays that hit its box, their entry t, and the
-        // nearest of those.
-        let mut hits = [0u32; 4];
-        let mut near = [[Vec4::ZERO; HALVES]; 4];
-        let mut nearest = [f32::INFINITY; 4];
-        for lane in 0..4 {
-            if node.child[lane] == wide::EMPTY {
-                continue;
-            }
-            for h in 0..HALVES {
-                let m = mask >> (4 * h) & 15;
-                if m == 0 {
-                    continue;
-                }
-                let slab = |axis: usize| {
-                    let t0 = (Vec4::splat(node.lo[axis][lane]) - soa.o[axis][h]) * soa.inv[axis][h];
-                    let t1 = (Vec4::splat(node.hi[axis][lane]) - soa.o[axis][h]) * soa.inv[axis][h];
-                    (t0.min(t1), t0.max(t1))
-                };
-                let (nx, fx) = slab(0);
-                let (ny, fy) = slab(1);
-                let (nz, fz) = slab(2);
-                let t_near = nx.max(ny).max(nz.max(Vec4::ZERO));
-                let t_far = fx.min(fy).min(fz.min(best_t[h])) * scale;
-                let hit = t_near.cmple(t_far).bitmask() & m;
-                if hit != 0 {
-                    hits[lane] |= hit << (4 * h);
-                    near[lane][h] = t_near;
-                    nearest[lane] = nearest[lane].min(
-                        Vec4::select(LANES[hit as usize], t_near, Vec4::INFINITY).min_element(),
-                    );
-                }
-            }
-        }
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: AVX2 is only true in `traverse_avx2`, which runs only
+        // where the CPU has AVX2.
+        let Children {
+            hits,
+            near,
+            nearest,
+        } = if AVX2 {
+            unsafe { children_avx2(node, &soa, mask, &best_t) }
+        } else {
+            children_sse(node, &soa, mask, &best_t)
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        let Children {
+            hits,
+            near,
+            nearest,
+        } = children_sse(node, &soa, mask, &best_t);
         // Hit lanes nearest first (by their nearest ray, then lane).
         let mut order = [0usize; 4];
         let mut n = 0;
@@ -187,7 +338,7 @@ pub fn traverse(
             // their entry since.
             let mut rays_in = hits[lane] & live;
             for h in 0..HALVES {
-                let late = near[lane][h].cmpgt(best_t[h] * scale).bitmask();
+                let late = near[lane].half(h).cmpgt(best_t.half(h) * scale).bitmask();
                 rays_in &= !(late << (4 * h));
             }
             if rays_in == 0 {
@@ -197,7 +348,7 @@ pub fn traverse(
                 let r = rays_in.trailing_zeros() as usize;
                 rays_in &= rays_in - 1;
                 let done = hit_leaf(scene, &rays[r], leaf, &mut best[r], any_hit, &[], 0.0);
-                best_t[r / 4][r % 4] = best[r].t;
+                best_t.0[r] = best[r].t;
                 if done {
                     live &= !(1 << r);
                 }
@@ -415,5 +566,74 @@ mod tests {
             "{hits} hits, {blocked} blocked"
         );
         assert!(ties < hits / 100, "{ties} ties");
+    }
+
+    /// The AVX2 box test gives every ray what the SSE one gives it, to the
+    /// bit: which children it passes and its entry t, including rays along
+    /// an axis plane (either sign of zero) and rays with a NaN direction.
+    #[test]
+    fn avx2_boxes_match_sse() {
+        #[cfg(target_arch = "x86_64")]
+        {
+            if !std::arch::is_x86_feature_detected!("avx2") {
+                eprintln!("SKIPPED: avx2_boxes_match_sse: this CPU has no AVX2");
+                return;
+            }
+            let scene = wide::tests::scene(500);
+            let bvh = Bvh::build(&scene);
+            let camera = crate::camera::Camera::new(64, 48);
+            let geometry = CpuGeometry::<f32>::new(&scene, &bvh, &Default::default());
+            let cpu = CpuScene::new(&scene, &bvh, &geometry, &camera, &CpuOptions::default());
+            let mut state = 23u32;
+            let mut next = || {
+                state = crate::cpu::sample::hash_u32(state);
+                f32::from_bits(state >> 9 | 0x3f80_0000) * 2.0 - 3.0
+            };
+            let mut passed = 0;
+            for p in 0..300 {
+                let rays: [Ray<f32>; WIDTH] = std::array::from_fn(|r| {
+                    let o = Vec3::new(next(), next(), next()) * 4.0;
+                    let mut d = Vec3::new(next(), next(), next() - 1.0);
+                    match (p + r) % 8 {
+                        1 => d.x = 0.0,
+                        2 => d.y = -0.0,
+                        3 if p % 16 == 3 => d = Vec3::NAN,
+                        _ => {}
+                    }
+                    let d = if d.is_nan() { d } else { d.normalize() };
+                    make_ray::<f32>(o, d, 0.0)
+                });
+                let soa = Soa::new(&rays);
+                let best_t = L8(std::array::from_fn(|_| {
+                    if next() > 0.0 {
+                        f32::MAX
+                    } else {
+                        next() + 20.0
+                    }
+                }));
+                let mask = if p % 3 == 0 { 0b0110_1101 } else { 0xff };
+                for node in &cpu.wide.nodes {
+                    let a = children_sse(node, &soa, mask, &best_t);
+                    // SAFETY: the CPU has AVX2, checked above.
+                    let b = unsafe { children_avx2(node, &soa, mask, &best_t) };
+                    assert_eq!(a.hits, b.hits);
+                    for lane in 0..4 {
+                        for r in 0..WIDTH {
+                            if a.hits[lane] & (1 << r) != 0 {
+                                assert_eq!(
+                                    a.near[lane].0[r].to_bits(),
+                                    b.near[lane].0[r].to_bits()
+                                );
+                            }
+                        }
+                        if a.hits[lane] != 0 {
+                            assert_eq!(a.nearest[lane].to_bits(), b.nearest[lane].to_bits());
+                        }
+                        passed += a.hits[lane].count_ones();
+                    }
+                }
+            }
+            assert!(passed > 1000, "{passed} box hits");
+        }
     }
 }
