@@ -326,8 +326,23 @@ fn traverse_with<const AVX2: bool>(
             order[i] = lane;
             n += 1;
         }
-        // Leaves are tested as they come, each by the rays that reached it
-        // and have not found a hit nearer than their entry since.
+        // Nodes onto the stack first, farthest first, so the nearest is
+        // next, and everything the test hit starts loading: the next node
+        // arrives while the leaves are tested, and the leaves' blocks
+        // together. The leaves cannot see the stack, so the order of work
+        // is as if they came first.
+        for &lane in order[..n].iter().rev() {
+            let child = node.child[lane];
+            if child & wide::LEAF == 0 {
+                // Indexed with a bounds check: `wide::STACK` bounds the depth.
+                stack[len] = std::mem::MaybeUninit::new((child, hits[lane], nearest[lane]));
+                len += 1;
+                prefetch(&scene.wide.nodes[child as usize]);
+            } else {
+                prefetch(&scene.wide.leaves[(child & !wide::LEAF) as usize]);
+            }
+        }
+        // Leaves are tested as they come, nearest first.
         for &lane in &order[..n] {
             let child = node.child[lane];
             if child & wide::LEAF == 0 {
@@ -340,9 +355,6 @@ fn traverse_with<const AVX2: bool>(
             for h in 0..HALVES {
                 let late = near[lane].half(h).cmpgt(best_t.half(h) * scale).bitmask();
                 rays_in &= !(late << (4 * h));
-            }
-            if rays_in == 0 {
-                continue;
             }
             while rays_in != 0 {
                 let r = rays_in.trailing_zeros() as usize;
@@ -357,36 +369,25 @@ fn traverse_with<const AVX2: bool>(
                 return best;
             }
         }
-        // Nodes onto the stack, farthest first, so the nearest is next.
-        for &lane in order[..n].iter().rev() {
-            let child = node.child[lane];
-            if child & wide::LEAF == 0 {
-                // Indexed with a bounds check: `wide::STACK` bounds the depth.
-                stack[len] = std::mem::MaybeUninit::new((child, hits[lane], nearest[lane]));
-                len += 1;
-                prefetch(&scene.wide.nodes[child as usize]);
-            }
-        }
     }
     best
 }
 
-/// Starts loading a node (its two cache lines) that will be opened soon.
+/// Starts loading what will be read soon: every cache line of `item`.
 #[inline(always)]
-fn prefetch(node: &wide::Node4) {
+fn prefetch<T>(item: &T) {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        let p = (node as *const wide::Node4).cast::<i8>();
-        // SAFETY: prefetching has no effect on memory; both addresses lie
-        // within the node.
-        unsafe {
-            _mm_prefetch(p, _MM_HINT_T0);
-            _mm_prefetch(p.add(64), _MM_HINT_T0);
+        let p = (item as *const T).cast::<i8>();
+        for offset in (0..std::mem::size_of::<T>()).step_by(64) {
+            // SAFETY: prefetching has no effect on memory; every address
+            // lies within `item`.
+            unsafe { _mm_prefetch(p.add(offset), _MM_HINT_T0) };
         }
     }
     #[cfg(not(target_arch = "x86_64"))]
-    let _ = node;
+    let _ = item;
 }
 
 /// Whether a render of `scene` may take its rows in packets: one sample a
