@@ -26,6 +26,7 @@ use super::trace::{
 use super::wide;
 use super::Real;
 use crate::layout::LIGHT_POINT;
+use crate::methods::Methods;
 
 /// Rays in a packet.
 pub const WIDTH: usize = 8;
@@ -260,6 +261,9 @@ fn traverse_with<const AVX2: bool>(
         return best;
     }
     let soa = Soa::new(rays);
+    // Where `hit_leaf` tests a leaf's triangles as one SIMD block (a packet
+    // never skips surfaces).
+    let simd_leaves = scene.methods == Methods::Robust && !scene.motion_blur;
     let mut best_t = L8([t_max; WIDTH]);
     let scale = Vec4::splat(f32::BOX_T_SCALE);
     // Rays still looking: an any-hit ray leaves once blocked.
@@ -355,6 +359,21 @@ fn traverse_with<const AVX2: bool>(
             for h in 0..HALVES {
                 let late = near[lane].half(h).cmpgt(best_t.half(h) * scale).bitmask();
                 rays_in &= !(late << (4 * h));
+            }
+            if leaf.simd && simd_leaves {
+                // `hit_leaf`'s own first branch, inlined here.
+                while rays_in != 0 {
+                    let r = rays_in.trailing_zeros() as usize;
+                    rays_in &= rays_in - 1;
+                    if let Some((k, t, b1, b2)) = wide::hit_block_f32(&rays[r], leaf, best[r].t) {
+                        let prim = scene.prim_refs[leaf.first as usize + k];
+                        best[r] = Hit { t, prim, b1, b2 };
+                        best_t.0[r] = t;
+                        if any_hit {
+                            live &= !(1 << r);
+                        }
+                    }
+                }
             }
             while rays_in != 0 {
                 let r = rays_in.trailing_zeros() as usize;
