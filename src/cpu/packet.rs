@@ -20,12 +20,13 @@
 use glam::{BVec4A, Vec3, Vec4};
 
 use super::trace::{
-    centre_key, count_ray, hit_leaf, light_at, light_term, pixel_ray, point_shading,
-    point_shadow_ray, reflect_path, surface_point, CpuScene, Hit, Ray, SurfacePoint, NO_HIT,
+    centre_key, count_ray, hit_leaf, hit_triangle, light_at, light_term, pixel_ray, point_shading,
+    point_shadow_ray, reflect_path, surface_point, CpuScene, Hit, Ray, Sphere, SurfacePoint,
+    NO_HIT,
 };
 use super::wide;
 use super::Real;
-use crate::layout::LIGHT_POINT;
+use crate::layout::{LIGHT_POINT, SPHERE_BIT};
 use crate::methods::Methods;
 
 /// Rays in a packet.
@@ -55,6 +56,7 @@ impl L8 {
 /// A packet's rays by component.
 struct Soa {
     o: [L8; 3],
+    dir: [L8; 3],
     inv: [L8; 3],
 }
 
@@ -63,16 +65,71 @@ impl Soa {
     fn new(rays: &[Ray<f32>; WIDTH]) -> Self {
         let mut soa = Soa {
             o: [L8([0.0; WIDTH]); 3],
+            dir: [L8([0.0; WIDTH]); 3],
             inv: [L8([0.0; WIDTH]); 3],
         };
         for (r, ray) in rays.iter().enumerate() {
             for axis in 0..3 {
                 soa.o[axis].0[r] = ray.origin[axis];
+                soa.dir[axis].0[r] = ray.dir[axis];
                 soa.inv[axis].0[r] = ray.inv_dir[axis];
             }
         }
         soa
     }
+}
+
+/// `trace::hit_sphere` (robust, no grazing band, the sphere where it
+/// stands) for every ray of a packet, four at a time: the same operations
+/// in the same order per lane, `f32::min` and `max` included (a NaN root
+/// gives way to the other), so each ray gets the scalar test's t to the
+/// bit. Each ray's limit is its own `best_t`; a miss is `T_INF`.
+#[inline(always)]
+fn hit_sphere_rays(soa: &Soa, s: &Sphere<f32>, best_t: &L8) -> L8 {
+    let mut out = L8([f32::T_INF; WIDTH]);
+    let rr = s.radius * s.radius;
+    let dot = |a: [Vec4; 3], b: [Vec4; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let fmin = |a: Vec4, b: Vec4| {
+        Vec4::select(
+            a.is_nan_mask(),
+            b,
+            Vec4::select(b.is_nan_mask(), a, a.min(b)),
+        )
+    };
+    let fmax = |a: Vec4, b: Vec4| {
+        Vec4::select(
+            a.is_nan_mask(),
+            b,
+            Vec4::select(b.is_nan_mask(), a, a.max(b)),
+        )
+    };
+    for h in 0..HALVES {
+        let d = [0, 1, 2].map(|axis| soa.dir[axis].half(h));
+        let f = [0, 1, 2].map(|axis| soa.o[axis].half(h) - Vec4::splat(s.center[axis]));
+        let a = dot(d, d);
+        let b = -dot(f, d);
+        let c = dot(f, f) - Vec4::splat(rr);
+        let ba = b / a;
+        let l = [0, 1, 2].map(|axis| f[axis] + d[axis] * ba);
+        let disc = Vec4::splat(rr) - dot(l, l);
+        let sign = Vec4::select(b.cmpge(Vec4::ZERO), Vec4::ONE, Vec4::NEG_ONE);
+        let q = b + sign * (a * disc).sqrt();
+        let miss = disc.cmplt(Vec4::ZERO);
+        let t0 = Vec4::select(miss, Vec4::splat(f32::T_INF), c / q);
+        let t1 = Vec4::select(miss, Vec4::splat(f32::T_INF), q / a);
+        let (t_lo, t_hi) = (fmin(t0, t1), fmax(t0, t1));
+        let t_max = best_t.half(h);
+        let zero = Vec4::ZERO;
+        let lo_ok = t_lo.cmpgt(zero) & t_lo.cmplt(t_max);
+        let hi_ok = t_hi.cmpgt(zero) & t_hi.cmplt(t_max);
+        let t = Vec4::select(
+            lo_ok,
+            t_lo,
+            Vec4::select(hi_ok, t_hi, Vec4::splat(f32::T_INF)),
+        );
+        out.set_half(h, t);
+    }
+    out
 }
 
 /// A node's four children against a packet: per child lane, the rays
@@ -375,6 +432,57 @@ fn traverse_with<const AVX2: bool>(
                     }
                 }
             }
+            if !leaf.simd && simd_leaves {
+                // `hit_leaf`'s loop over the primitives, robust, taken
+                // primitive by primitive for all the rays (each ray still
+                // meets them in order): spheres four rays at a time.
+                let refs =
+                    &scene.prim_refs[leaf.first as usize..(leaf.first + leaf.count) as usize];
+                for &prim in refs {
+                    if rays_in == 0 {
+                        break;
+                    }
+                    let index = (prim & !SPHERE_BIT) as usize;
+                    if prim & SPHERE_BIT != 0 {
+                        let t = hit_sphere_rays(&soa, &scene.spheres[index], &best_t);
+                        let mut hit = rays_in;
+                        while hit != 0 {
+                            let r = hit.trailing_zeros() as usize;
+                            hit &= hit - 1;
+                            if t.0[r] < best[r].t {
+                                best[r] = Hit {
+                                    t: t.0[r],
+                                    prim,
+                                    b1: 0.0,
+                                    b2: 0.0,
+                                };
+                                best_t.0[r] = t.0[r];
+                                if any_hit {
+                                    live &= !(1 << r);
+                                    rays_in &= !(1 << r);
+                                }
+                            }
+                        }
+                    } else {
+                        let tri = &scene.triangles[index];
+                        let mut each = rays_in;
+                        while each != 0 {
+                            let r = each.trailing_zeros() as usize;
+                            each &= each - 1;
+                            let (t, b1, b2) = hit_triangle(&rays[r], tri, best[r].t);
+                            if t < best[r].t {
+                                best[r] = Hit { t, prim, b1, b2 };
+                                best_t.0[r] = t;
+                                if any_hit {
+                                    live &= !(1 << r);
+                                    rays_in &= !(1 << r);
+                                }
+                            }
+                        }
+                    }
+                }
+                rays_in = 0;
+            }
             while rays_in != 0 {
                 let r = rays_in.trailing_zeros() as usize;
                 rays_in &= rays_in - 1;
@@ -655,5 +763,61 @@ mod tests {
             }
             assert!(passed > 1000, "{passed} box hits");
         }
+    }
+
+    /// The packet's sphere test gives each ray the scalar test's t to the
+    /// bit: hits from outside and inside, misses, grazing rays, rays from
+    /// the centre, and rays with a NaN direction.
+    #[test]
+    fn sphere_rays_match_the_scalar_test() {
+        use crate::cpu::trace::hit_sphere;
+        let mut state = 29u32;
+        let mut next = || {
+            state = crate::cpu::sample::hash_u32(state);
+            f32::from_bits(state >> 9 | 0x3f80_0000) * 2.0 - 3.0
+        };
+        let (mut hits, mut misses) = (0, 0);
+        for p in 0..2000 {
+            let s = Sphere {
+                center: Vec3::new(next(), next(), next() - 4.0),
+                radius: next().abs() + 0.01,
+                kd: Vec3::ONE,
+                ks: Vec3::ZERO,
+                shininess: 1.0,
+                velocity: Vec3::ZERO,
+            };
+            let rays: [Ray<f32>; WIDTH] = std::array::from_fn(|r| {
+                let o = match (p + r) % 5 {
+                    0 => s.center,
+                    1 => s.center + Vec3::new(next(), next(), next()) * s.radius * 0.5,
+                    _ => Vec3::new(next(), next(), next()),
+                };
+                let target = s.center + Vec3::new(next(), next(), next()) * s.radius;
+                let d = if (p + r) % 97 == 3 {
+                    Vec3::NAN
+                } else {
+                    (target - o).normalize()
+                };
+                make_ray::<f32>(o, d, 0.0)
+            });
+            let best_t = L8(std::array::from_fn(|_| {
+                if next() > 0.0 {
+                    f32::MAX
+                } else {
+                    next() + 4.0
+                }
+            }));
+            let got = hit_sphere_rays(&Soa::new(&rays), &s, &best_t);
+            for (r, ray) in rays.iter().enumerate() {
+                let want = hit_sphere(ray, &s, best_t.0[r], 0.0);
+                assert_eq!(got.0[r].to_bits(), want.to_bits(), "sphere {p} ray {r}");
+                if want < best_t.0[r] {
+                    hits += 1;
+                } else {
+                    misses += 1;
+                }
+            }
+        }
+        assert!(hits > 3000 && misses > 1000, "{hits} hits, {misses} misses");
     }
 }
