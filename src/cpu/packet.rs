@@ -1,7 +1,7 @@
-//! Eight rays through the wide tree together: the CPU reference's fast
+//! Sixteen rays through the wide tree together: the CPU reference's fast
 //! path for a row's primary rays and for their shadow rays towards each
 //! point light. Neighbouring pixels' rays open mostly the same nodes, so
-//! one pop, one child sort and one push serve all eight, where a single ray
+//! one pop, one child sort and one push serve all sixteen, where a single ray
 //! pays them alone; that bookkeeping, not the box arithmetic, was most of a
 //! single ray's cost.
 //!
@@ -30,7 +30,7 @@ use crate::layout::{LIGHT_POINT, SPHERE_BIT};
 use crate::methods::Methods;
 
 /// Rays in a packet.
-pub const WIDTH: usize = 8;
+pub const WIDTH: usize = 16;
 
 /// SSE vectors in a packet.
 const HALVES: usize = WIDTH / 4;
@@ -183,7 +183,7 @@ fn children_sse(node: &wide::Node4, soa: &Soa, mask: u32, best_t: &L8) -> Childr
     out
 }
 
-/// `children_sse` with AVX2, all eight rays at a time: the same operations
+/// `children_sse` with AVX2, eight rays at a time: the same operations
 /// lane for lane (`_mm256_min_ps` and `_mm256_max_ps` take their operands
 /// in `Vec4::min`'s and `max`'s order, so NaNs fall the same way; `<=` is
 /// the same ordered compare), so each ray gets the same answer to the bit.
@@ -197,54 +197,63 @@ fn children_avx2(node: &wide::Node4, soa: &Soa, mask: u32, best_t: &L8) -> Child
         near: [L8([0.0; WIDTH]); 4],
         nearest: [f32::INFINITY; 4],
     };
-    // SAFETY: `L8` is 32-byte aligned and holds eight f32, as the aligned
-    // loads and stores need; the rest is arithmetic on registers.
+    // SAFETY: `L8` is 32-byte aligned and holds `WIDTH` f32, a multiple of
+    // eight, as the aligned loads and stores at every eighth one need; the
+    // rest is arithmetic on registers.
     unsafe {
-        let load = |l: &L8| _mm256_load_ps(l.0.as_ptr());
-        let o = [load(&soa.o[0]), load(&soa.o[1]), load(&soa.o[2])];
-        let inv = [load(&soa.inv[0]), load(&soa.inv[1]), load(&soa.inv[2])];
-        let bt = load(best_t);
         let scale = _mm256_set1_ps(f32::BOX_T_SCALE);
         let zero = _mm256_setzero_ps();
         let inf = _mm256_set1_ps(f32::INFINITY);
-        for lane in 0..4 {
-            if node.child[lane] == wide::EMPTY {
+        let bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+        for g in 0..WIDTH / 8 {
+            let m8 = mask >> (8 * g) & 255;
+            if m8 == 0 {
                 continue;
             }
-            let slab = |axis: usize| {
-                let t0 = _mm256_mul_ps(
-                    _mm256_sub_ps(_mm256_set1_ps(node.lo[axis][lane]), o[axis]),
-                    inv[axis],
+            let load = |l: &L8| _mm256_load_ps(l.0.as_ptr().add(8 * g));
+            let o = [load(&soa.o[0]), load(&soa.o[1]), load(&soa.o[2])];
+            let inv = [load(&soa.inv[0]), load(&soa.inv[1]), load(&soa.inv[2])];
+            let bt = load(best_t);
+            for lane in 0..4 {
+                if node.child[lane] == wide::EMPTY {
+                    continue;
+                }
+                let slab = |axis: usize| {
+                    let t0 = _mm256_mul_ps(
+                        _mm256_sub_ps(_mm256_set1_ps(node.lo[axis][lane]), o[axis]),
+                        inv[axis],
+                    );
+                    let t1 = _mm256_mul_ps(
+                        _mm256_sub_ps(_mm256_set1_ps(node.hi[axis][lane]), o[axis]),
+                        inv[axis],
+                    );
+                    (_mm256_min_ps(t0, t1), _mm256_max_ps(t0, t1))
+                };
+                let (nx, fx) = slab(0);
+                let (ny, fy) = slab(1);
+                let (nz, fz) = slab(2);
+                let t_near = _mm256_max_ps(_mm256_max_ps(nx, ny), _mm256_max_ps(nz, zero));
+                let t_far = _mm256_mul_ps(
+                    _mm256_min_ps(_mm256_min_ps(fx, fy), _mm256_min_ps(fz, bt)),
+                    scale,
                 );
-                let t1 = _mm256_mul_ps(
-                    _mm256_sub_ps(_mm256_set1_ps(node.hi[axis][lane]), o[axis]),
-                    inv[axis],
-                );
-                (_mm256_min_ps(t0, t1), _mm256_max_ps(t0, t1))
-            };
-            let (nx, fx) = slab(0);
-            let (ny, fy) = slab(1);
-            let (nz, fz) = slab(2);
-            let t_near = _mm256_max_ps(_mm256_max_ps(nx, ny), _mm256_max_ps(nz, zero));
-            let t_far = _mm256_mul_ps(
-                _mm256_min_ps(_mm256_min_ps(fx, fy), _mm256_min_ps(fz, bt)),
-                scale,
-            );
-            let passed = _mm256_cmp_ps::<_CMP_LE_OS>(t_near, t_far);
-            let hit = _mm256_movemask_ps(passed) as u32 & mask;
-            if hit != 0 {
-                out.hits[lane] = hit;
-                _mm256_store_ps(out.near[lane].0.as_mut_ptr(), t_near);
-                // The nearest entry among the rays that hit: the others at
-                // +inf, then a min across the lanes.
-                let bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
-                let chosen =
-                    _mm256_cmpeq_epi32(_mm256_and_si256(_mm256_set1_epi32(hit as i32), bits), bits);
-                let t = _mm256_blendv_ps(inf, t_near, _mm256_castsi256_ps(chosen));
-                let m = _mm_min_ps(_mm256_castps256_ps128(t), _mm256_extractf128_ps::<1>(t));
-                let m = _mm_min_ps(m, _mm_movehl_ps(m, m));
-                let m = _mm_min_ss(m, _mm_shuffle_ps::<1>(m, m));
-                out.nearest[lane] = _mm_cvtss_f32(m);
+                let passed = _mm256_cmp_ps::<_CMP_LE_OS>(t_near, t_far);
+                let hit = _mm256_movemask_ps(passed) as u32 & m8;
+                if hit != 0 {
+                    out.hits[lane] |= hit << (8 * g);
+                    _mm256_store_ps(out.near[lane].0.as_mut_ptr().add(8 * g), t_near);
+                    // The nearest entry among the rays that hit: the others
+                    // at +inf, then a min across the lanes.
+                    let chosen = _mm256_cmpeq_epi32(
+                        _mm256_and_si256(_mm256_set1_epi32(hit as i32), bits),
+                        bits,
+                    );
+                    let t = _mm256_blendv_ps(inf, t_near, _mm256_castsi256_ps(chosen));
+                    let m = _mm_min_ps(_mm256_castps256_ps128(t), _mm256_extractf128_ps::<1>(t));
+                    let m = _mm_min_ps(m, _mm_movehl_ps(m, m));
+                    let m = _mm_min_ss(m, _mm_shuffle_ps::<1>(m, m));
+                    out.nearest[lane] = out.nearest[lane].min(_mm_cvtss_f32(m));
+                }
             }
         }
     }
@@ -319,7 +328,7 @@ fn traverse_with<const AVX2: bool>(
     }
     let soa = Soa::new(rays);
     // Where `hit_leaf` tests a leaf's triangles as one SIMD block (a packet
-    // never skips surfaces).
+    // never skips surfaces); with `applies`, always.
     let simd_leaves = scene.methods == Methods::Robust && !scene.motion_blur;
     let mut best_t = L8([t_max; WIDTH]);
     let scale = Vec4::splat(f32::BOX_T_SCALE);
@@ -517,16 +526,19 @@ fn prefetch<T>(item: &T) {
     let _ = item;
 }
 
-/// Whether a render of `scene` may take its rows in packets: one sample a
-/// pixel, at its centre, with nothing moving, so every ray of a row starts
-/// at the same time from the camera.
+/// Whether a render of `scene` may take its pixels in packets: one sample
+/// a pixel, at its centre, with nothing moving, so every primary ray
+/// starts at the same time from the camera; and the robust methods, whose
+/// tests never find a hit outside its leaf's box, so that which hit a ray
+/// keeps cannot depend on the order leaves are opened in beyond near-ties
+/// (the naive test can, and its renders show the single ray's order).
 pub fn applies(scene: &CpuScene<f32>) -> bool {
-    scene.spp <= 1 && !scene.motion_blur
+    scene.spp <= 1 && !scene.motion_blur && scene.methods == Methods::Robust
 }
 
 /// A packet's pixels: a block `TILE[0]` wide and `TILE[1]` high, whose
-/// rays stay closer together than a row's eight.
-pub const TILE: [u32; 2] = [4, 2];
+/// rays stay closer together than a row's sixteen.
+pub const TILE: [u32; 2] = [4, 4];
 
 /// The colours `pixel_color` gives `pixels` (up to `WIDTH`), clamped: the
 /// primary rays as a packet, then per point light the shadow rays of the
