@@ -123,6 +123,35 @@ impl<R: Real> CpuGeometry<R> {
                 .filter(|_| R::SIMD_LEAVES && r & SPHERE_BIT == 0)?;
             Some(t.vertices.map(|x| x.position.as_vec3().to_array()))
         };
+        // The tree on one thread, the primitives on the others: at 8M
+        // triangles each is seconds, and a render waits for both.
+        use rayon::prelude::*;
+        let (wide, (triangles, shading)) = rayon::join(
+            || super::wide::collapse(bvh, corners),
+            || {
+                rayon::join(
+                    || {
+                        scene
+                            .triangles
+                            .par_iter()
+                            .map(|t| t.vertices.map(|x| v(x.position)))
+                            .collect()
+                    },
+                    || {
+                        scene
+                            .triangles
+                            .par_iter()
+                            .map(|t| {
+                                t.vertices.map(|x| VertexShading {
+                                    normal: v(x.normal),
+                                    material: x.material,
+                                })
+                            })
+                            .collect()
+                    },
+                )
+            },
+        );
         CpuGeometry {
             spheres: scene
                 .spheres
@@ -136,27 +165,14 @@ impl<R: Real> CpuGeometry<R> {
                     velocity: v(s.velocity),
                 })
                 .collect(),
-            triangles: scene
-                .triangles
-                .iter()
-                .map(|t| t.vertices.map(|x| v(x.position)))
-                .collect(),
+            triangles,
             // Read only with motion blur (`triangle_at`).
             triangle_velocity: if features.motion_blur {
                 scene.triangles.iter().map(|t| v(t.velocity)).collect()
             } else {
                 Vec::new()
             },
-            shading: scene
-                .triangles
-                .iter()
-                .map(|t| {
-                    t.vertices.map(|x| VertexShading {
-                        normal: v(x.normal),
-                        material: x.material,
-                    })
-                })
-                .collect(),
+            shading,
             materials: scene
                 .materials
                 .iter()
@@ -166,7 +182,7 @@ impl<R: Real> CpuGeometry<R> {
                     shininess: R::from_f64(m.shininess),
                 })
                 .collect(),
-            wide: super::wide::collapse(bvh, corners),
+            wide,
             motion_blur: features.motion_blur,
         }
     }

@@ -144,14 +144,18 @@ fn collapse_node(
         let d = [0, 1, 2].map(|a| f64::from(n.max[a] - n.min[a]).max(0.0));
         d[0] * d[1] + d[1] * d[2] + d[2] * d[0]
     };
-    let mut kids: Vec<usize> = if interior(index) {
-        vec![index + 1, bin[index].right_or_first as usize]
+    // An array, not a vector: one per node of a tree of millions.
+    let mut kids = [0usize; 4];
+    let mut n = if interior(index) {
+        kids[..2].copy_from_slice(&[index + 1, bin[index].right_or_first as usize]);
+        2
     } else {
         // A tree that is one leaf.
-        vec![index]
+        kids[0] = index;
+        1
     };
-    while kids.len() < 4 {
-        let widest = kids
+    while n < 4 {
+        let widest = kids[..n]
             .iter()
             .enumerate()
             .filter(|&(_, &k)| interior(k))
@@ -160,10 +164,13 @@ fn collapse_node(
         let Some(lane) = widest else { break };
         let k = kids[lane];
         // In place, so the children keep the binary tree's left-right order.
-        kids.splice(lane..=lane, [k + 1, bin[k].right_or_first as usize]);
+        kids.copy_within(lane + 1..n, lane + 2);
+        kids[lane] = k + 1;
+        kids[lane + 1] = bin[k].right_or_first as usize;
+        n += 1;
     }
     let mut node = Node4::EMPTY;
-    for (lane, &k) in kids.iter().enumerate() {
+    for (lane, &k) in kids[..n].iter().enumerate() {
         for a in 0..3 {
             node.lo[a][lane] = bin[k].min[a];
             node.hi[a][lane] = bin[k].max[a];
