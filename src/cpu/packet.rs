@@ -275,6 +275,16 @@ const LANES: [BVec4A; 16] = {
 /// nearest of their entry t.
 type Entry = (u32, u32, f32);
 
+/// What a traversal is asked: the closest hit (`any_hit`: a blocker)
+/// before `t_max` of each ray whose bit is set in `active`.
+#[derive(Clone, Copy)]
+struct Query<'a> {
+    rays: &'a [Ray<f32>; WIDTH],
+    active: u32,
+    t_max: f32,
+    any_hit: bool,
+}
+
 /// The closest hit (`any_hit`: a blocker) before `t_max` of each ray whose
 /// bit is set in `active`; the other rays' hits say `NO_HIT`. As
 /// `trace::traverse` with no surfaces to skip and no grazing band. Tests a
@@ -286,37 +296,37 @@ pub fn traverse(
     t_max: f32,
     any_hit: bool,
 ) -> [Hit<f32>; WIDTH] {
+    let query = Query {
+        rays,
+        active,
+        t_max,
+        any_hit,
+    };
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2, checked just above.
-        return unsafe { traverse_avx2(scene, rays, active, t_max, any_hit) };
+        return unsafe { traverse_avx2(scene, query) };
     }
-    traverse_with::<false>(scene, rays, active, t_max, any_hit)
+    traverse_with::<false>(scene, query)
 }
 
 /// `traverse_with` compiled for AVX2, so its box tests inline.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn traverse_avx2(
-    scene: &CpuScene<f32>,
-    rays: &[Ray<f32>; WIDTH],
-    active: u32,
-    t_max: f32,
-    any_hit: bool,
-) -> [Hit<f32>; WIDTH] {
-    traverse_with::<true>(scene, rays, active, t_max, any_hit)
+fn traverse_avx2(scene: &CpuScene<f32>, query: Query) -> [Hit<f32>; WIDTH] {
+    traverse_with::<true>(scene, query)
 }
 
 /// `traverse`, its box tests 8 rays at a time with AVX2 when `AVX2` (only
 /// ever true inside `traverse_avx2`).
 #[inline(always)]
-fn traverse_with<const AVX2: bool>(
-    scene: &CpuScene<f32>,
-    rays: &[Ray<f32>; WIDTH],
-    active: u32,
-    t_max: f32,
-    any_hit: bool,
-) -> [Hit<f32>; WIDTH] {
+fn traverse_with<const AVX2: bool>(scene: &CpuScene<f32>, query: Query) -> [Hit<f32>; WIDTH] {
+    let Query {
+        rays,
+        active,
+        t_max,
+        any_hit,
+    } = query;
     let mut best = [Hit {
         t: t_max,
         prim: NO_HIT,
@@ -633,23 +643,36 @@ mod tests {
     use crate::bvh::Bvh;
     use crate::cpu::trace::{make_ray, traverse as single, CpuGeometry};
     use crate::cpu::CpuOptions;
+    use crate::scene::Scene;
     use glam::Vec3;
+
+    /// `n` random triangles in front of the camera, their tree, and their
+    /// f32 geometry.
+    fn fixture(n: usize) -> (Scene, Bvh, CpuGeometry<f32>) {
+        let scene = wide::tests::scene(n);
+        let bvh = Bvh::build(&scene);
+        let geometry = CpuGeometry::new(&scene, &bvh, &Default::default());
+        (scene, bvh, geometry)
+    }
+
+    /// Uniform numbers in [-1, 1), replayable from `seed`.
+    fn uniform(seed: u32) -> impl FnMut() -> f32 {
+        let mut state = seed;
+        move || {
+            state = crate::cpu::sample::hash_u32(state);
+            f32::from_bits(state >> 9 | 0x3f80_0000) * 2.0 - 3.0
+        }
+    }
 
     /// Every ray of a packet gets the single ray's closest hit (the same
     /// t to the bit; a different primitive only at that same t) and the
     /// single ray's shadow verdict, packets coherent or not, some lanes off.
     #[test]
     fn packets_find_what_single_rays_find() {
-        let scene = wide::tests::scene(3000);
-        let bvh = Bvh::build(&scene);
+        let (scene, bvh, geometry) = fixture(3000);
         let camera = crate::camera::Camera::new(64, 48);
-        let geometry = CpuGeometry::<f32>::new(&scene, &bvh, &Default::default());
         let cpu = CpuScene::new(&scene, &bvh, &geometry, &camera, &CpuOptions::default());
-        let mut state = 17u32;
-        let mut next = || {
-            state = crate::cpu::sample::hash_u32(state);
-            f32::from_bits(state >> 9 | 0x3f80_0000) * 2.0 - 3.0
-        };
+        let mut next = uniform(17);
         let (mut hits, mut blocked, mut ties) = (0, 0, 0);
         for p in 0..600 {
             // Coherent packets (one origin, close directions), scattered
@@ -719,16 +742,10 @@ mod tests {
                 eprintln!("SKIPPED: avx2_boxes_match_sse: this CPU has no AVX2");
                 return;
             }
-            let scene = wide::tests::scene(500);
-            let bvh = Bvh::build(&scene);
+            let (scene, bvh, geometry) = fixture(500);
             let camera = crate::camera::Camera::new(64, 48);
-            let geometry = CpuGeometry::<f32>::new(&scene, &bvh, &Default::default());
             let cpu = CpuScene::new(&scene, &bvh, &geometry, &camera, &CpuOptions::default());
-            let mut state = 23u32;
-            let mut next = || {
-                state = crate::cpu::sample::hash_u32(state);
-                f32::from_bits(state >> 9 | 0x3f80_0000) * 2.0 - 3.0
-            };
+            let mut next = uniform(23);
             let mut passed = 0;
             for p in 0..300 {
                 let rays: [Ray<f32>; WIDTH] = std::array::from_fn(|r| {
@@ -783,11 +800,7 @@ mod tests {
     #[test]
     fn sphere_rays_match_the_scalar_test() {
         use crate::cpu::trace::hit_sphere;
-        let mut state = 29u32;
-        let mut next = || {
-            state = crate::cpu::sample::hash_u32(state);
-            f32::from_bits(state >> 9 | 0x3f80_0000) * 2.0 - 3.0
-        };
+        let mut next = uniform(29);
         let (mut hits, mut misses) = (0, 0);
         for p in 0..2000 {
             let s = Sphere {
