@@ -235,12 +235,7 @@ fn write_atomically(
         Some(d) if !d.as_os_str().is_empty() => d,
         _ => Path::new("."),
     };
-    let mut tmp = tempfile::Builder::new()
-        .prefix(".glint-")
-        .suffix(".part")
-        .tempfile_in(dir)
-        .map_err(wrap)?;
-    let _registered = PartialFile::register(tmp.path());
+    let (mut tmp, _registered) = PartialFile::create_in(dir).map_err(wrap)?;
     {
         let mut w = std::io::BufWriter::new(tmp.as_file_mut());
         encode(&mut w).map_err(|e| wrap(std::io::Error::other(e)))?;
@@ -269,10 +264,19 @@ static PARTIAL_FILES: std::sync::Mutex<Vec<std::path::PathBuf>> = std::sync::Mut
 struct PartialFile(std::path::PathBuf);
 
 impl PartialFile {
-    fn register(path: &Path) -> PartialFile {
+    /// A new temporary file in `dir`, listed. It is created with the list
+    /// locked: a signal's handler (on its own thread) that comes while the
+    /// file exists but is not yet listed waits for the lock and then finds
+    /// it, where it used to miss it and leave it behind.
+    fn create_in(dir: &Path) -> std::io::Result<(tempfile::NamedTempFile, PartialFile)> {
         let mut files = PARTIAL_FILES.lock().unwrap_or_else(|e| e.into_inner());
-        files.push(path.to_path_buf());
-        PartialFile(path.to_path_buf())
+        let tmp = tempfile::Builder::new()
+            .prefix(".glint-")
+            .suffix(".part")
+            .tempfile_in(dir)?;
+        files.push(tmp.path().to_path_buf());
+        let listed = PartialFile(tmp.path().to_path_buf());
+        Ok((tmp, listed))
     }
 }
 
