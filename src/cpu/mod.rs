@@ -40,9 +40,10 @@ pub struct CpuOptions {
     pub precision: Precision,
     pub methods: Methods,
     pub effects: Effects,
-    /// Whether f32 renders may trace a row's rays in packets
+    /// Whether f32 renders may trace their pixels' rays in packets
     /// (`packet::applies`); off, every ray goes alone. The image is the
-    /// same up to which of two hits at exactly the same t is kept.
+    /// same but where a ray meets two surfaces at (nearly) one t, which
+    /// of them is kept (`cpu::packet`).
     pub packets: bool,
 }
 
@@ -102,26 +103,8 @@ pub fn render_where(
         Geometry::F32(g) => {
             let s = CpuScene::new(scene, bvh, g, camera, options);
             if options.packets && packet::applies(&s) {
-                let [tw, th] = packet::TILE;
-                per_band(&s, progress, th, |s, y0, band| {
-                    let w = s.size[0];
-                    let rows = band.len() as u32 / w;
-                    for x0 in (0..w).step_by(tw as usize) {
-                        let mut pixels = [[0u32; 2]; packet::WIDTH];
-                        let mut n = 0;
-                        for y in y0..y0 + rows {
-                            for x in x0..(x0 + tw).min(w) {
-                                if keep(x, y) {
-                                    pixels[n] = [x, y];
-                                    n += 1;
-                                }
-                            }
-                        }
-                        let colours = packet::colours(s, &pixels[..n]);
-                        for (&[x, y], c) in pixels[..n].iter().zip(colours) {
-                            band[((y - y0) * w + x) as usize] = c;
-                        }
-                    }
+                per_band(&s, progress, packet::TILE[1], |s, y0, band| {
+                    packet::fill_band(s, y0, band, keep);
                 })
             } else {
                 per_pixel(&s, progress, |s, x, y| pixel(x, y, &|| colour(s, x, y)))

@@ -1,5 +1,5 @@
 //! Sixteen rays through the wide tree together: the CPU reference's fast
-//! path for a row's primary rays and for their shadow rays towards each
+//! path for a tile's primary rays and for their shadow rays towards each
 //! point light. Neighbouring pixels' rays open mostly the same nodes, so
 //! one pop, one child sort and one push serve all sixteen, where a single ray
 //! pays them alone; that bookkeeping, not the box arithmetic, was most of a
@@ -32,41 +32,41 @@ use crate::methods::Methods;
 /// Rays in a packet.
 pub const WIDTH: usize = 16;
 
-/// SSE vectors in a packet.
-const HALVES: usize = WIDTH / 4;
+/// SSE vectors (quads of rays) in a packet.
+const QUADS: usize = WIDTH / 4;
 
-/// One f32 per ray of a packet, aligned for one 8-lane (AVX) load or two
-/// 4-lane (SSE) ones.
+/// One f32 per ray of a packet, aligned for its loads in quads (SSE) and
+/// octets (AVX2).
 #[derive(Clone, Copy, Debug)]
 #[repr(C, align(32))]
-struct L8([f32; WIDTH]);
+struct Lanes([f32; WIDTH]);
 
-impl L8 {
+impl Lanes {
     #[inline(always)]
-    fn half(&self, h: usize) -> Vec4 {
+    fn quad(&self, h: usize) -> Vec4 {
         Vec4::from_slice(&self.0[4 * h..4 * h + 4])
     }
 
     #[inline(always)]
-    fn set_half(&mut self, h: usize, v: Vec4) {
+    fn set_quad(&mut self, h: usize, v: Vec4) {
         v.write_to_slice(&mut self.0[4 * h..4 * h + 4]);
     }
 }
 
 /// A packet's rays by component.
 struct Soa {
-    o: [L8; 3],
-    dir: [L8; 3],
-    inv: [L8; 3],
+    o: [Lanes; 3],
+    dir: [Lanes; 3],
+    inv: [Lanes; 3],
 }
 
 impl Soa {
     #[inline(always)]
     fn new(rays: &[Ray<f32>; WIDTH]) -> Self {
         let mut soa = Soa {
-            o: [L8([0.0; WIDTH]); 3],
-            dir: [L8([0.0; WIDTH]); 3],
-            inv: [L8([0.0; WIDTH]); 3],
+            o: [Lanes([0.0; WIDTH]); 3],
+            dir: [Lanes([0.0; WIDTH]); 3],
+            inv: [Lanes([0.0; WIDTH]); 3],
         };
         for (r, ray) in rays.iter().enumerate() {
             for axis in 0..3 {
@@ -85,8 +85,8 @@ impl Soa {
 /// gives way to the other), so each ray gets the scalar test's t to the
 /// bit. Each ray's limit is its own `best_t`; a miss is `T_INF`.
 #[inline(always)]
-fn hit_sphere_rays(soa: &Soa, s: &Sphere<f32>, best_t: &L8) -> L8 {
-    let mut out = L8([f32::T_INF; WIDTH]);
+fn hit_sphere_rays(soa: &Soa, s: &Sphere<f32>, best_t: &Lanes) -> Lanes {
+    let mut out = Lanes([f32::T_INF; WIDTH]);
     let rr = s.radius * s.radius;
     let dot = |a: [Vec4; 3], b: [Vec4; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
     let fmin = |a: Vec4, b: Vec4| {
@@ -103,9 +103,9 @@ fn hit_sphere_rays(soa: &Soa, s: &Sphere<f32>, best_t: &L8) -> L8 {
             Vec4::select(b.is_nan_mask(), a, a.max(b)),
         )
     };
-    for h in 0..HALVES {
-        let d = [0, 1, 2].map(|axis| soa.dir[axis].half(h));
-        let f = [0, 1, 2].map(|axis| soa.o[axis].half(h) - Vec4::splat(s.center[axis]));
+    for h in 0..QUADS {
+        let d = [0, 1, 2].map(|axis| soa.dir[axis].quad(h));
+        let f = [0, 1, 2].map(|axis| soa.o[axis].quad(h) - Vec4::splat(s.center[axis]));
         let a = dot(d, d);
         let b = -dot(f, d);
         let c = dot(f, f) - Vec4::splat(rr);
@@ -118,7 +118,7 @@ fn hit_sphere_rays(soa: &Soa, s: &Sphere<f32>, best_t: &L8) -> L8 {
         let t0 = Vec4::select(miss, Vec4::splat(f32::T_INF), c / q);
         let t1 = Vec4::select(miss, Vec4::splat(f32::T_INF), q / a);
         let (t_lo, t_hi) = (fmin(t0, t1), fmax(t0, t1));
-        let t_max = best_t.half(h);
+        let t_max = best_t.quad(h);
         let zero = Vec4::ZERO;
         let lo_ok = t_lo.cmpgt(zero) & t_lo.cmplt(t_max);
         let hi_ok = t_hi.cmpgt(zero) & t_hi.cmplt(t_max);
@@ -127,7 +127,7 @@ fn hit_sphere_rays(soa: &Soa, s: &Sphere<f32>, best_t: &L8) -> L8 {
             t_lo,
             Vec4::select(hi_ok, t_hi, Vec4::splat(f32::T_INF)),
         );
-        out.set_half(h, t);
+        out.set_quad(h, t);
     }
     out
 }
@@ -137,31 +137,31 @@ fn hit_sphere_rays(soa: &Soa, s: &Sphere<f32>, best_t: &L8) -> L8 {
 /// those.
 struct Children {
     hits: [u32; 4],
-    near: [L8; 4],
+    near: [Lanes; 4],
     nearest: [f32; 4],
 }
 
 /// `Children` with SSE (glam's `Vec4`), four rays at a time: each lane is
 /// `wide::hit_boxes_f32`'s arithmetic for its ray, operation for operation.
 #[inline(always)]
-fn children_sse(node: &wide::Node4, soa: &Soa, mask: u32, best_t: &L8) -> Children {
+fn children_sse(node: &wide::Node4, soa: &Soa, mask: u32, best_t: &Lanes) -> Children {
     let scale = Vec4::splat(f32::BOX_T_SCALE);
     let mut out = Children {
         hits: [0; 4],
-        near: [L8([0.0; WIDTH]); 4],
+        near: [Lanes([0.0; WIDTH]); 4],
         nearest: [f32::INFINITY; 4],
     };
     for lane in 0..4 {
         if node.child[lane] == wide::EMPTY {
             continue;
         }
-        for h in 0..HALVES {
+        for h in 0..QUADS {
             let m = mask >> (4 * h) & 15;
             if m == 0 {
                 continue;
             }
             let slab = |axis: usize| {
-                let (o, inv) = (soa.o[axis].half(h), soa.inv[axis].half(h));
+                let (o, inv) = (soa.o[axis].quad(h), soa.inv[axis].quad(h));
                 let t0 = (Vec4::splat(node.lo[axis][lane]) - o) * inv;
                 let t1 = (Vec4::splat(node.hi[axis][lane]) - o) * inv;
                 (t0.min(t1), t0.max(t1))
@@ -170,11 +170,11 @@ fn children_sse(node: &wide::Node4, soa: &Soa, mask: u32, best_t: &L8) -> Childr
             let (ny, fy) = slab(1);
             let (nz, fz) = slab(2);
             let t_near = nx.max(ny).max(nz.max(Vec4::ZERO));
-            let t_far = fx.min(fy).min(fz.min(best_t.half(h))) * scale;
+            let t_far = fx.min(fy).min(fz.min(best_t.quad(h))) * scale;
             let hit = t_near.cmple(t_far).bitmask() & m;
             if hit != 0 {
                 out.hits[lane] |= hit << (4 * h);
-                out.near[lane].set_half(h, t_near);
+                out.near[lane].set_quad(h, t_near);
                 out.nearest[lane] = out.nearest[lane]
                     .min(Vec4::select(LANES[hit as usize], t_near, Vec4::INFINITY).min_element());
             }
@@ -190,14 +190,14 @@ fn children_sse(node: &wide::Node4, soa: &Soa, mask: u32, best_t: &L8) -> Childr
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-fn children_avx2(node: &wide::Node4, soa: &Soa, mask: u32, best_t: &L8) -> Children {
+fn children_avx2(node: &wide::Node4, soa: &Soa, mask: u32, best_t: &Lanes) -> Children {
     use std::arch::x86_64::*;
     let mut out = Children {
         hits: [0; 4],
-        near: [L8([0.0; WIDTH]); 4],
+        near: [Lanes([0.0; WIDTH]); 4],
         nearest: [f32::INFINITY; 4],
     };
-    // SAFETY: `L8` is 32-byte aligned and holds `WIDTH` f32, a multiple of
+    // SAFETY: `Lanes` is 32-byte aligned and holds `WIDTH` f32, a multiple of
     // eight, as the aligned loads and stores at every eighth one need; the
     // rest is arithmetic on registers.
     unsafe {
@@ -210,7 +210,7 @@ fn children_avx2(node: &wide::Node4, soa: &Soa, mask: u32, best_t: &L8) -> Child
             if m8 == 0 {
                 continue;
             }
-            let load = |l: &L8| _mm256_load_ps(l.0.as_ptr().add(8 * g));
+            let load = |l: &Lanes| _mm256_load_ps(l.0.as_ptr().add(8 * g));
             let o = [load(&soa.o[0]), load(&soa.o[1]), load(&soa.o[2])];
             let inv = [load(&soa.inv[0]), load(&soa.inv[1]), load(&soa.inv[2])];
             let bt = load(best_t);
@@ -340,7 +340,7 @@ fn traverse_with<const AVX2: bool>(scene: &CpuScene<f32>, query: Query) -> [Hit<
     // Where `hit_leaf` tests a leaf's triangles as one SIMD block (a packet
     // never skips surfaces); with `applies`, always.
     let simd_leaves = scene.methods == Methods::Robust && !scene.motion_blur;
-    let mut best_t = L8([t_max; WIDTH]);
+    let mut best_t = Lanes([t_max; WIDTH]);
     let scale = Vec4::splat(f32::BOX_T_SCALE);
     // Rays still looking: an any-hit ray leaves once blocked.
     let mut live = active;
@@ -359,11 +359,11 @@ fn traverse_with<const AVX2: bool>(scene: &CpuScene<f32>, query: Query) -> [Hit<
         }
         // Dropped unopened when no ray that entered it could find a hit
         // nearer than its entry any more (the box test they would fail).
-        let farthest = (0..HALVES)
+        let farthest = (0..QUADS)
             .map(|h| {
                 Vec4::select(
                     LANES[(mask >> (4 * h) & 15) as usize],
-                    best_t.half(h),
+                    best_t.quad(h),
                     Vec4::NEG_INFINITY,
                 )
                 .max_element()
@@ -432,11 +432,22 @@ fn traverse_with<const AVX2: bool>(scene: &CpuScene<f32>, query: Query) -> [Hit<
             // The rays that reached it and have not found a hit nearer than
             // their entry since.
             let mut rays_in = hits[lane] & live;
-            for h in 0..HALVES {
-                let late = near[lane].half(h).cmpgt(best_t.half(h) * scale).bitmask();
+            for h in 0..QUADS {
+                let late = near[lane].quad(h).cmpgt(best_t.quad(h) * scale).bitmask();
                 rays_in &= !(late << (4 * h));
             }
-            if leaf.simd && simd_leaves {
+            if !simd_leaves {
+                // As a single ray's, one ray at a time.
+                while rays_in != 0 {
+                    let r = rays_in.trailing_zeros() as usize;
+                    rays_in &= rays_in - 1;
+                    let done = hit_leaf(scene, &rays[r], leaf, &mut best[r], any_hit, &[], 0.0);
+                    best_t.0[r] = best[r].t;
+                    if done {
+                        live &= !(1 << r);
+                    }
+                }
+            } else if leaf.simd {
                 // `hit_leaf`'s own first branch, inlined here.
                 while rays_in != 0 {
                     let r = rays_in.trailing_zeros() as usize;
@@ -450,8 +461,7 @@ fn traverse_with<const AVX2: bool>(scene: &CpuScene<f32>, query: Query) -> [Hit<
                         }
                     }
                 }
-            }
-            if !leaf.simd && simd_leaves {
+            } else {
                 // `hit_leaf`'s loop over the primitives, robust, taken
                 // primitive by primitive for all the rays (each ray still
                 // meets them in order): spheres four rays at a time.
@@ -500,16 +510,6 @@ fn traverse_with<const AVX2: bool>(scene: &CpuScene<f32>, query: Query) -> [Hit<
                         }
                     }
                 }
-                rays_in = 0;
-            }
-            while rays_in != 0 {
-                let r = rays_in.trailing_zeros() as usize;
-                rays_in &= rays_in - 1;
-                let done = hit_leaf(scene, &rays[r], leaf, &mut best[r], any_hit, &[], 0.0);
-                best_t.0[r] = best[r].t;
-                if done {
-                    live &= !(1 << r);
-                }
             }
             if live == 0 {
                 return best;
@@ -549,6 +549,35 @@ pub fn applies(scene: &CpuScene<f32>) -> bool {
 /// A packet's pixels: a block `TILE[0]` wide and `TILE[1]` high, whose
 /// rays stay closer together than a row's sixteen.
 pub const TILE: [u32; 2] = [4, 4];
+
+/// Fills a band of `TILE[1]` rows (fewer for the last) from row `y0`, each
+/// `TILE`-sized tile's pixels that `keep` says as one packet (`colours`),
+/// the others left as they are.
+pub fn fill_band(
+    scene: &CpuScene<f32>,
+    y0: u32,
+    band: &mut [[f32; 3]],
+    keep: &(dyn Fn(u32, u32) -> bool + Sync),
+) {
+    let [tw, _] = TILE;
+    let w = scene.size[0];
+    let rows = band.len() as u32 / w.max(1);
+    for x0 in (0..w).step_by(tw as usize) {
+        let mut pixels = [[0u32; 2]; WIDTH];
+        let mut n = 0;
+        for y in y0..y0 + rows {
+            for x in x0..(x0 + tw).min(w) {
+                if keep(x, y) {
+                    pixels[n] = [x, y];
+                    n += 1;
+                }
+            }
+        }
+        for (&[x, y], c) in pixels[..n].iter().zip(colours(scene, &pixels[..n])) {
+            band[((y - y0) * w + x) as usize] = c;
+        }
+    }
+}
 
 /// The colours `pixel_color` gives `pixels` (up to `WIDTH`), clamped: the
 /// primary rays as a packet, then per point light the shadow rays of the
@@ -761,7 +790,7 @@ mod tests {
                     make_ray::<f32>(o, d, 0.0)
                 });
                 let soa = Soa::new(&rays);
-                let best_t = L8(std::array::from_fn(|_| {
+                let best_t = Lanes(std::array::from_fn(|_| {
                     if next() > 0.0 {
                         f32::MAX
                     } else {
@@ -825,7 +854,7 @@ mod tests {
                 };
                 make_ray::<f32>(o, d, 0.0)
             });
-            let best_t = L8(std::array::from_fn(|_| {
+            let best_t = Lanes(std::array::from_fn(|_| {
                 if next() > 0.0 {
                     f32::MAX
                 } else {
