@@ -550,6 +550,9 @@ pub fn applies(scene: &CpuScene<f32>) -> bool {
 /// rays stay closer together than a row's sixteen.
 pub const TILE: [u32; 2] = [4, 4];
 
+// A tile's pixels fit one packet (`fill_band` gathers them into one).
+const _: () = assert!(TILE[0] * TILE[1] <= WIDTH as u32);
+
 /// Fills a band of `TILE[1]` rows (fewer for the last) from row `y0`, each
 /// `TILE`-sized tile's pixels that `keep` says as one packet (`colours`),
 /// the others left as they are.
