@@ -613,6 +613,7 @@ mod tests {
                 lo: [Vec4::INFINITY; 3],
                 hi: [Vec4::INFINITY; 3],
                 child: [WIDE_EMPTY; 4],
+                leaves: [0; 4],
             };
             let centre = [unit(), unit(), unit()].map(|c| (c - 0.5) * 4.0 * scale);
             for l in 0..used {

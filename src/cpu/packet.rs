@@ -134,7 +134,8 @@ fn hit_sphere_rays(soa: &Soa, s: &Sphere<f32>, best_t: &Lanes) -> Lanes {
 
 /// A node's four children against a packet: per child lane, the rays
 /// (of `mask`) whose box test it passes, their entry t, and the nearest of
-/// those.
+/// those (the last two left at 0 and +inf in an any-hit traversal, which
+/// does not need them).
 struct Children {
     hits: [u32; 4],
     near: [Lanes; 4],
@@ -144,7 +145,12 @@ struct Children {
 /// `Children` with SSE (glam's `Vec4`), four rays at a time: each lane is
 /// `wide::hit_boxes_f32`'s arithmetic for its ray, operation for operation.
 #[inline(always)]
-fn children_sse(node: &wide::Node4, soa: &Soa, mask: u32, best_t: &Lanes) -> Children {
+fn children_sse<const ANY_HIT: bool>(
+    node: &wide::Node4,
+    soa: &Soa,
+    mask: u32,
+    best_t: &Lanes,
+) -> Children {
     let scale = Vec4::splat(f32::BOX_T_SCALE);
     let mut out = Children {
         hits: [0; 4],
@@ -174,9 +180,12 @@ fn children_sse(node: &wide::Node4, soa: &Soa, mask: u32, best_t: &Lanes) -> Chi
             let hit = t_near.cmple(t_far).bitmask() & m;
             if hit != 0 {
                 out.hits[lane] |= hit << (4 * h);
-                out.near[lane].set_quad(h, t_near);
-                out.nearest[lane] = out.nearest[lane]
-                    .min(Vec4::select(LANES[hit as usize], t_near, Vec4::INFINITY).min_element());
+                if !ANY_HIT {
+                    out.near[lane].set_quad(h, t_near);
+                    out.nearest[lane] = out.nearest[lane].min(
+                        Vec4::select(LANES[hit as usize], t_near, Vec4::INFINITY).min_element(),
+                    );
+                }
             }
         }
     }
@@ -190,7 +199,12 @@ fn children_sse(node: &wide::Node4, soa: &Soa, mask: u32, best_t: &Lanes) -> Chi
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 #[inline]
-fn children_avx2(node: &wide::Node4, soa: &Soa, mask: u32, best_t: &Lanes) -> Children {
+fn children_avx2<const ANY_HIT: bool>(
+    node: &wide::Node4,
+    soa: &Soa,
+    mask: u32,
+    best_t: &Lanes,
+) -> Children {
     use std::arch::x86_64::*;
     let mut out = Children {
         hits: [0; 4],
@@ -241,6 +255,8 @@ fn children_avx2(node: &wide::Node4, soa: &Soa, mask: u32, best_t: &Lanes) -> Ch
                 let hit = _mm256_movemask_ps(passed) as u32 & m8;
                 if hit != 0 {
                     out.hits[lane] |= hit << (8 * g);
+                }
+                if hit != 0 && !ANY_HIT {
                     _mm256_store_ps(out.near[lane].0.as_mut_ptr().add(8 * g), t_near);
                     // The nearest entry among the rays that hit: the others
                     // at +inf, then a min across the lanes.
@@ -275,14 +291,14 @@ const LANES: [BVec4A; 16] = {
 /// nearest of their entry t.
 type Entry = (u32, u32, f32);
 
-/// What a traversal is asked: the closest hit (`any_hit`: a blocker)
-/// before `t_max` of each ray whose bit is set in `active`.
+/// What a traversal is asked: the closest hit (or, in an any-hit
+/// traversal, a blocker) before `t_max` of each ray whose bit is set in
+/// `active`.
 #[derive(Clone, Copy)]
 struct Query<'a> {
     rays: &'a [Ray<f32>; WIDTH],
     active: u32,
     t_max: f32,
-    any_hit: bool,
 }
 
 /// The closest hit (`any_hit`: a blocker) before `t_max` of each ray whose
@@ -300,33 +316,50 @@ pub fn traverse(
         rays,
         active,
         t_max,
-        any_hit,
     };
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2, checked just above.
-        return unsafe { traverse_avx2(scene, query) };
+        return unsafe {
+            if any_hit {
+                traverse_avx2::<true>(scene, query)
+            } else {
+                traverse_avx2::<false>(scene, query)
+            }
+        };
     }
-    traverse_with::<false>(scene, query)
+    if any_hit {
+        traverse_with::<false, true>(scene, query)
+    } else {
+        traverse_with::<false, false>(scene, query)
+    }
 }
 
 /// `traverse_with` compiled for AVX2, so its box tests inline.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn traverse_avx2(scene: &CpuScene<f32>, query: Query) -> [Hit<f32>; WIDTH] {
-    traverse_with::<true>(scene, query)
+fn traverse_avx2<const ANY_HIT: bool>(scene: &CpuScene<f32>, query: Query) -> [Hit<f32>; WIDTH] {
+    traverse_with::<true, ANY_HIT>(scene, query)
 }
 
 /// `traverse`, its box tests 8 rays at a time with AVX2 when `AVX2` (only
-/// ever true inside `traverse_avx2`).
+/// ever true inside `traverse_avx2`), for blockers when `ANY_HIT`.
+///
+/// An any-hit ray's limit stays `t_max` until it is blocked and leaves, so
+/// no box it passed can later lie beyond its limit, and whether it is
+/// blocked does not depend on the order it meets leaves in: there the
+/// entry t that order and dropping need is not computed.
 #[inline(always)]
-fn traverse_with<const AVX2: bool>(scene: &CpuScene<f32>, query: Query) -> [Hit<f32>; WIDTH] {
+fn traverse_with<const AVX2: bool, const ANY_HIT: bool>(
+    scene: &CpuScene<f32>,
+    query: Query,
+) -> [Hit<f32>; WIDTH] {
     let Query {
         rays,
         active,
         t_max,
-        any_hit,
     } = query;
+    let any_hit = ANY_HIT;
     let mut best = [Hit {
         t: t_max,
         prim: NO_HIT,
@@ -359,18 +392,20 @@ fn traverse_with<const AVX2: bool>(scene: &CpuScene<f32>, query: Query) -> [Hit<
         }
         // Dropped unopened when no ray that entered it could find a hit
         // nearer than its entry any more (the box test they would fail).
-        let farthest = (0..QUADS)
-            .map(|h| {
-                Vec4::select(
-                    LANES[(mask >> (4 * h) & 15) as usize],
-                    best_t.quad(h),
-                    Vec4::NEG_INFINITY,
-                )
-                .max_element()
-            })
-            .fold(f32::NEG_INFINITY, f32::max);
-        if t_entry > farthest * f32::BOX_T_SCALE {
-            continue;
+        if !ANY_HIT {
+            let farthest = (0..QUADS)
+                .map(|h| {
+                    Vec4::select(
+                        LANES[(mask >> (4 * h) & 15) as usize],
+                        best_t.quad(h),
+                        Vec4::NEG_INFINITY,
+                    )
+                    .max_element()
+                })
+                .fold(f32::NEG_INFINITY, f32::max);
+            if t_entry > farthest * f32::BOX_T_SCALE {
+                continue;
+            }
         }
         let node = &scene.wide.nodes[index as usize];
         #[cfg(target_arch = "x86_64")]
@@ -381,17 +416,18 @@ fn traverse_with<const AVX2: bool>(scene: &CpuScene<f32>, query: Query) -> [Hit<
             near,
             nearest,
         } = if AVX2 {
-            unsafe { children_avx2(node, &soa, mask, &best_t) }
+            unsafe { children_avx2::<ANY_HIT>(node, &soa, mask, &best_t) }
         } else {
-            children_sse(node, &soa, mask, &best_t)
+            children_sse::<ANY_HIT>(node, &soa, mask, &best_t)
         };
         #[cfg(not(target_arch = "x86_64"))]
         let Children {
             hits,
             near,
             nearest,
-        } = children_sse(node, &soa, mask, &best_t);
-        // Hit lanes nearest first (by their nearest ray, then lane).
+        } = children_sse::<ANY_HIT>(node, &soa, mask, &best_t);
+        // Hit lanes nearest first (by their nearest ray, then lane; in
+        // lane order for any-hit rays, whose entries are not computed).
         let mut order = [0usize; 4];
         let mut n = 0;
         for lane in 0..4 {
@@ -407,10 +443,11 @@ fn traverse_with<const AVX2: bool>(scene: &CpuScene<f32>, query: Query) -> [Hit<
             n += 1;
         }
         // Nodes onto the stack first, farthest first, so the nearest is
-        // next, and everything the test hit starts loading: the next node
-        // arrives while the leaves are tested, and the leaves' blocks
-        // together. The leaves cannot see the stack, so the order of work
-        // is as if they came first.
+        // next, and each starts loading with its own leaf blocks: the next
+        // node arrives while this one's leaves are tested, and its leaves
+        // with it (this node's were started when it was pushed). The
+        // leaves cannot see the stack, so the order of work is as if they
+        // came first.
         for &lane in order[..n].iter().rev() {
             let child = node.child[lane];
             if child & wide::LEAF == 0 {
@@ -418,8 +455,9 @@ fn traverse_with<const AVX2: bool>(scene: &CpuScene<f32>, query: Query) -> [Hit<
                 stack[len] = std::mem::MaybeUninit::new((child, hits[lane], nearest[lane]));
                 len += 1;
                 prefetch(&scene.wide.nodes[child as usize]);
-            } else {
-                prefetch(&scene.wide.leaves[(child & !wide::LEAF) as usize]);
+                for block in &scene.wide.leaves[node.leaf_run(lane)] {
+                    prefetch(block);
+                }
             }
         }
         // Leaves are tested as they come, nearest first.
@@ -428,11 +466,12 @@ fn traverse_with<const AVX2: bool>(scene: &CpuScene<f32>, query: Query) -> [Hit<
             if child & wide::LEAF == 0 {
                 continue;
             }
-            let leaf = &scene.wide.leaves[(child & !wide::LEAF) as usize];
+            let index = (child & !wide::LEAF) as usize;
+            let leaf = &scene.wide.leaves[index];
             // The rays that reached it and have not found a hit nearer than
             // their entry since.
             let mut rays_in = hits[lane] & live;
-            for h in 0..QUADS {
+            for h in (0..QUADS).filter(|_| !ANY_HIT) {
                 let late = near[lane].quad(h).cmpgt(best_t.quad(h) * scale).bitmask();
                 rays_in &= !(late << (4 * h));
             }
@@ -441,19 +480,19 @@ fn traverse_with<const AVX2: bool>(scene: &CpuScene<f32>, query: Query) -> [Hit<
                 while rays_in != 0 {
                     let r = rays_in.trailing_zeros() as usize;
                     rays_in &= rays_in - 1;
-                    let done = hit_leaf(scene, &rays[r], leaf, &mut best[r], any_hit, &[], 0.0);
+                    let done = hit_leaf(scene, &rays[r], index, &mut best[r], any_hit, &[], 0.0);
                     best_t.0[r] = best[r].t;
                     if done {
                         live &= !(1 << r);
                     }
                 }
-            } else if leaf.simd {
+            } else if leaf.simd() {
                 // `hit_leaf`'s own first branch, inlined here.
                 while rays_in != 0 {
                     let r = rays_in.trailing_zeros() as usize;
                     rays_in &= rays_in - 1;
                     if let Some((k, t, b1, b2)) = wide::hit_block_f32(&rays[r], leaf, best[r].t) {
-                        let prim = scene.prim_refs[leaf.first as usize + k];
+                        let prim = leaf.prims[k];
                         best[r] = Hit { t, prim, b1, b2 };
                         best_t.0[r] = t;
                         if any_hit {
@@ -465,8 +504,9 @@ fn traverse_with<const AVX2: bool>(scene: &CpuScene<f32>, query: Query) -> [Hit<
                 // `hit_leaf`'s loop over the primitives, robust, taken
                 // primitive by primitive for all the rays (each ray still
                 // meets them in order): spheres four rays at a time.
+                let span = scene.wide.spans[index];
                 let refs =
-                    &scene.prim_refs[leaf.first as usize..(leaf.first + leaf.count) as usize];
+                    &scene.prim_refs[span.first as usize..(span.first + span.count) as usize];
                 for &prim in refs {
                     if rays_in == 0 {
                         break;
@@ -525,11 +565,13 @@ fn prefetch<T>(item: &T) {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        let p = (item as *const T).cast::<i8>();
-        for offset in (0..std::mem::size_of::<T>()).step_by(64) {
-            // SAFETY: prefetching has no effect on memory; every address
-            // lies within `item`.
-            unsafe { _mm_prefetch(p.add(offset), _MM_HINT_T0) };
+        // Every line from the one holding the first byte to the one holding
+        // the last: an item need not start on a line.
+        let start = item as *const T as usize;
+        let end = start + std::mem::size_of::<T>();
+        for line in (start & !63..end).step_by(64) {
+            // SAFETY: prefetching has no effect on memory, and never faults.
+            unsafe { _mm_prefetch(line as *const i8, _MM_HINT_T0) };
         }
     }
     #[cfg(not(target_arch = "x86_64"))]
@@ -802,10 +844,15 @@ mod tests {
                 }));
                 let mask = if p % 3 == 0 { 0b0110_1101 } else { 0xff };
                 for node in &cpu.wide.nodes {
-                    let a = children_sse(node, &soa, mask, &best_t);
+                    let a = children_sse::<false>(node, &soa, mask, &best_t);
                     // SAFETY: the CPU has AVX2, checked above.
-                    let b = unsafe { children_avx2(node, &soa, mask, &best_t) };
+                    let b = unsafe { children_avx2::<false>(node, &soa, mask, &best_t) };
                     assert_eq!(a.hits, b.hits);
+                    // The any-hit tests find the same rays in each box.
+                    assert_eq!(children_sse::<true>(node, &soa, mask, &best_t).hits, a.hits);
+                    // SAFETY: as above.
+                    let c = unsafe { children_avx2::<true>(node, &soa, mask, &best_t) };
+                    assert_eq!(c.hits, a.hits);
                     for lane in 0..4 {
                         for r in 0..WIDTH {
                             if a.hits[lane] & (1 << r) != 0 {

@@ -15,7 +15,7 @@ use super::real::Real;
 use super::sample::{
     rng, stratified_2d, unit_float, ROTATION, STREAM_LIGHT, STREAM_PIXEL, STREAM_TIME,
 };
-use super::wide::{self, LeafBlock, WideBvh};
+use super::wide::{self, WideBvh};
 use super::CpuOptions;
 
 pub const NO_HIT: u32 = u32::MAX;
@@ -528,7 +528,7 @@ pub fn hit_triangle<R: Real>(ray: &Ray<R>, tri: &[R::V3; 3], t_max: R) -> (R, R,
 pub(super) fn hit_leaf<R: Real>(
     scene: &CpuScene<R>,
     ray: &Ray<R>,
-    leaf: &LeafBlock,
+    leaf: usize,
     best: &mut Hit<R>,
     any_hit: bool,
     skip: &[u32],
@@ -536,15 +536,17 @@ pub(super) fn hit_leaf<R: Real>(
 ) -> bool {
     // The shader branches on ROBUST inside hit_sphere and hit_triangle.
     let robust = scene.methods == Methods::Robust;
-    let (first, count) = (leaf.first as usize, leaf.count as usize);
-    if leaf.simd && robust && !scene.motion_blur && skip.is_empty() {
-        if let Some((lane, t, b1, b2)) = R::hit_block(ray, leaf, best.t) {
-            let prim = scene.prim_refs[first + lane];
+    let block = &scene.wide.leaves[leaf];
+    if block.simd() && robust && !scene.motion_blur && skip.is_empty() {
+        if let Some((lane, t, b1, b2)) = R::hit_block(ray, block, best.t) {
+            let prim = block.prims[lane];
             *best = Hit { t, prim, b1, b2 };
             return any_hit;
         }
         return false;
     }
+    let span = scene.wide.spans[leaf];
+    let (first, count) = (span.first as usize, span.count as usize);
     for &prim in &scene.prim_refs[first..first + count] {
         let index = (prim & !SPHERE_BIT) as usize;
         if any_hit && skip.contains(&prim) {
@@ -716,7 +718,7 @@ fn traverse_from<R: Real>(
             if t[lane] > best.t * R::BOX_T_SCALE {
                 continue;
             }
-            let leaf = &scene.wide.leaves[(child & !wide::LEAF) as usize];
+            let leaf = (child & !wide::LEAF) as usize;
             if hit_leaf(scene, ray, leaf, best, any_hit, skip, graze) {
                 return;
             }

@@ -25,33 +25,75 @@ pub const LEAF: u32 = crate::layout::WIDE_LEAF;
 pub const EMPTY: u32 = crate::layout::WIDE_EMPTY;
 
 /// Four children: their boxes by axis and lane (`lo[axis][lane]`), then per
-/// lane a node index, `LEAF | block`, or `EMPTY`. 112 bytes.
+/// lane a node index, `LEAF | block`, or `EMPTY`, and, for a node child,
+/// where that child's own leaf blocks lie (`Node4::leaf_run`). 128 bytes,
+/// two whole cache lines.
 #[derive(Clone, Copy, Debug, PartialEq)]
-#[repr(C)]
+#[repr(C, align(64))]
 pub struct Node4 {
     pub lo: [Vec4; 3],
     pub hi: [Vec4; 3],
     pub child: [u32; 4],
+    /// Per node lane: the first of the child's leaf blocks, times
+    /// `RUN_LEN`, plus how many there are (they lie together, `collapse`).
+    /// So a traversal that pushes the child can start loading its leaves
+    /// with it, and meets them loaded when it opens the child, instead of
+    /// waiting on one load after the other. 0 elsewhere, and in the
+    /// shader's tree, which does not use it.
+    pub leaves: [u32; 4],
 }
 
-/// A leaf: its primitive references `prim_refs[first..first + count]`,
-/// and, when they are up to four triangles (`simd`), their corners by
-/// axis, corner and lane (`p[axis][corner][lane]`, f32), so that one SIMD
-/// watertight test meets all four (`hit_block_f32`).
+/// A leaf's triangles for the SIMD test, when it holds up to four
+/// triangles: their corners by axis, corner and lane (`p[axis][corner]
+/// [lane]`, f32), so that one SIMD watertight test meets all four
+/// (`hit_block_f32`), and their primitive references, so that a hit needs
+/// no other load. Unused lanes' references are `NONE`, and all are in a
+/// leaf the SIMD test does not take (`simd`). 160 bytes.
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C)]
 pub struct LeafBlock {
     pub p: [[Vec4; 3]; 3],
-    pub first: u32,
-    pub count: u32,
-    pub simd: bool,
+    pub prims: [u32; 4],
 }
 
-/// The collapsed tree: nodes (root first) and their leaves.
+/// `LeafBlock::prims` of an unused lane.
+pub const NONE: u32 = u32::MAX;
+
+/// A leaf's primitive references: `prim_refs[first..first + count]`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct LeafSpan {
+    pub first: u32,
+    pub count: u32,
+}
+
+/// The collapsed tree: nodes (root first) and their leaves, each a block
+/// and a span at the same index.
 #[derive(Clone, Debug, Default)]
 pub struct WideBvh {
     pub nodes: Vec<Node4>,
     pub leaves: Vec<LeafBlock>,
+    pub spans: Vec<LeafSpan>,
+}
+
+impl LeafBlock {
+    const EMPTY: LeafBlock = LeafBlock {
+        p: [[Vec4::ZERO; 3]; 3],
+        prims: [NONE; 4],
+    };
+
+    /// Whether the SIMD test takes this leaf.
+    #[inline(always)]
+    pub fn simd(&self) -> bool {
+        self.prims[0] != NONE
+    }
+
+    /// A bit per lane that holds a triangle.
+    #[inline(always)]
+    pub fn lanes(&self) -> u32 {
+        glam::UVec4::from_array(self.prims)
+            .cmpne(glam::UVec4::splat(NONE))
+            .bitmask()
+    }
 }
 
 impl Node4 {
@@ -62,7 +104,16 @@ impl Node4 {
         lo: [Vec4::INFINITY; 3],
         hi: [Vec4::INFINITY; 3],
         child: [EMPTY; 4],
+        leaves: [0; 4],
     };
+
+    /// The leaf blocks of the node in `lane` (a node child): their indices.
+    #[inline(always)]
+    pub fn leaf_run(&self, lane: usize) -> std::ops::Range<usize> {
+        let word = self.leaves[lane] as usize;
+        let first = word / RUN_LEN;
+        first..first + word % RUN_LEN
+    }
 
     pub fn lane_box(&self, lane: usize) -> ([f32; 3], [f32; 3]) {
         (
@@ -71,6 +122,13 @@ impl Node4 {
         )
     }
 }
+
+const _: () = assert!(std::mem::size_of::<Node4>() == 128);
+const _: () = assert!(std::mem::size_of::<LeafBlock>() == 160);
+
+/// `Node4::leaves` packs a run's length (0 to 4) below this multiple of its
+/// first block: a tree of up to 2^32 / 8 leaf blocks (`collapse` checks).
+const RUN_LEN: usize = 8;
 
 /// Deepest a collapsed tree's stack gets: each node visited pushes at most
 /// four entries and pops one, and the tree is no deeper than the binary one.
@@ -83,36 +141,64 @@ pub const STACK: usize = 3 * crate::layout::BVH_MAX_DEPTH as usize + 4;
 /// f32, None for a sphere (or always None where leaves are not tested in
 /// SIMD).
 pub fn collapse(bvh: &Bvh, corners: impl Fn(u32) -> Option<[[f32; 3]; 3]>) -> WideBvh {
-    let mut leaves = Vec::with_capacity(bvh.nodes.len() / 2 + 1);
+    let mut spans = Vec::with_capacity(bvh.nodes.len() / 2 + 1);
     let nodes = collapse_nodes(bvh, |n| {
-        leaves.push(LeafBlock {
-            p: [[Vec4::ZERO; 3]; 3],
+        spans.push(LeafSpan {
             first: n.right_or_first,
             count: n.count,
-            simd: false,
         });
-        LEAF | (leaves.len() - 1) as u32
+        LEAF | (spans.len() - 1) as u32
     });
-    let mut out = WideBvh { nodes, leaves };
-    for leaf in &mut out.leaves {
-        let refs = &bvh.prim_refs[leaf.first as usize..(leaf.first + leaf.count) as usize];
+    let leaves = vec![LeafBlock::EMPTY; spans.len()];
+    let mut out = WideBvh {
+        nodes,
+        leaves,
+        spans,
+    };
+    // Each node's leaves were numbered together (`collapse_node`), so a
+    // run is its least block and its count.
+    assert!(
+        out.leaves.len() < (u32::MAX as usize + 1) / RUN_LEN,
+        "{} leaf blocks: more than a collapsed tree can index",
+        out.leaves.len()
+    );
+    for i in 0..out.nodes.len() {
+        for lane in 0..4 {
+            let child = out.nodes[i].child[lane];
+            if child & LEAF != 0 {
+                continue;
+            }
+            let blocks = out.nodes[child as usize]
+                .child
+                .iter()
+                .filter(|&&c| c != EMPTY && c & LEAF != 0)
+                .map(|&c| (c & !LEAF) as usize);
+            let (first, count) = blocks.fold((usize::MAX, 0), |(f, n), b| (f.min(b), n + 1));
+            if count > 0 {
+                out.nodes[i].leaves[lane] = (first * RUN_LEN + count) as u32;
+            }
+        }
+    }
+    for (leaf, span) in out.leaves.iter_mut().zip(&out.spans) {
+        let refs = &bvh.prim_refs[span.first as usize..(span.first + span.count) as usize];
         if refs.len() > 4 {
             continue;
         }
-        let mut p = [[Vec4::ZERO; 3]; 3];
-        leaf.simd = refs.iter().enumerate().all(|(lane, &r)| {
+        let mut block = LeafBlock::EMPTY;
+        let simd = refs.iter().enumerate().all(|(lane, &r)| {
             let Some(tri) = corners(r) else {
                 return false;
             };
             for (corner, q) in tri.iter().enumerate() {
                 for (axis, &x) in q.iter().enumerate() {
-                    p[axis][corner][lane] = x;
+                    block.p[axis][corner][lane] = x;
                 }
             }
+            block.prims[lane] = r;
             true
         });
-        if leaf.simd {
-            leaf.p = p;
+        if simd {
+            *leaf = block;
         }
     }
     out
@@ -175,11 +261,18 @@ fn collapse_node(
             node.lo[a][lane] = bin[k].min[a];
             node.hi[a][lane] = bin[k].max[a];
         }
-        node.child[lane] = if interior(k) {
-            collapse_node(bin, k, out, leaf)
-        } else {
-            leaf(&bin[k])
-        };
+    }
+    // The node's own leaves first, so they are numbered together (the
+    // CPU's blocks lie side by side, `Node4::leaves`); then its subtrees.
+    for (lane, &k) in kids[..n].iter().enumerate() {
+        if !interior(k) {
+            node.child[lane] = leaf(&bin[k]);
+        }
+    }
+    for (lane, &k) in kids[..n].iter().enumerate() {
+        if interior(k) {
+            node.child[lane] = collapse_node(bin, k, out, leaf);
+        }
     }
     out[slot] = node;
     slot as u32
@@ -225,7 +318,7 @@ pub fn hit_block_f32(
     let det_positive = det.cmpgt(zero);
     let inside = (det_positive & positive) | (!det_positive & negative);
     let hit = !(some_negative & some_positive) & det.cmpne(zero) & inside;
-    let mut mask = hit.bitmask() & ((1u32 << block.count) - 1);
+    let mut mask = hit.bitmask() & block.lanes();
     if mask == 0 {
         return None;
     }
@@ -350,13 +443,27 @@ pub(crate) mod tests {
                     match node.child[lane] {
                         EMPTY => assert!(lo[0].is_infinite()),
                         c if c & LEAF != 0 => {
-                            let leaf = &wide.leaves[(c & !LEAF) as usize];
-                            assert!(leaf.simd, "triangles only");
-                            leaves.push((leaf.first, leaf.count, lo, hi));
+                            let index = (c & !LEAF) as usize;
+                            let (leaf, span) = (&wide.leaves[index], wide.spans[index]);
+                            assert!(leaf.simd(), "triangles only");
+                            let refs = &bvh.prim_refs
+                                [span.first as usize..(span.first + span.count) as usize];
+                            assert_eq!(&leaf.prims[..refs.len()], refs);
+                            assert!(leaf.prims[refs.len()..].iter().all(|&p| p == NONE));
+                            leaves.push((span.first, span.count, lo, hi));
                         }
                         c => {
                             // The child's lanes fit inside this lane's box.
                             let child = &wide.nodes[c as usize];
+                            // Its leaf blocks are the run this lane names.
+                            let mut own: Vec<usize> = child
+                                .child
+                                .iter()
+                                .filter(|&&k| k != EMPTY && k & LEAF != 0)
+                                .map(|&k| (k & !LEAF) as usize)
+                                .collect();
+                            own.sort_unstable();
+                            assert_eq!(own, node.leaf_run(lane).collect::<Vec<_>>());
                             for l in 0..4 {
                                 if child.child[l] == EMPTY {
                                     continue;
@@ -459,8 +566,8 @@ pub(crate) mod tests {
             f32::from_bits(state >> 9 | 0x3f80_0000) * 2.0 - 3.0
         };
         let mut hits = 0;
-        for leaf in &wide.leaves {
-            let refs = &bvh.prim_refs[leaf.first as usize..(leaf.first + leaf.count) as usize];
+        for (leaf, span) in wide.leaves.iter().zip(&wide.spans) {
+            let refs = &bvh.prim_refs[span.first as usize..(span.first + span.count) as usize];
             for _ in 0..20 {
                 // Rays from near the camera towards a point of the leaf's
                 // first triangle, so many hit, some on edges and corners.
