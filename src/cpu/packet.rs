@@ -20,9 +20,9 @@
 use glam::{BVec4A, Vec3, Vec4};
 
 use super::trace::{
-    centre_key, count_ray, hit_leaf, hit_triangle, light_at, light_term, pixel_ray, point_shading,
-    point_shadow_ray, reflect_path, surface_point, CpuScene, Hit, Ray, Sphere, SurfacePoint,
-    NO_HIT,
+    centre_key, count_ray, hit_leaf, hit_triangle, light_at, light_term, point_shading,
+    ray_with_inverse, reflect_path, shadow_origin, surface_point, CpuScene, Hit, Ray, Sphere,
+    SurfacePoint, NO_HIT,
 };
 use super::wide;
 use super::Real;
@@ -578,6 +578,52 @@ fn prefetch<T>(item: &T) {
     let _ = item;
 }
 
+/// `trace::make_ray` (at time 0) for a packet's rays, their divisions four
+/// rays at a time: per lane the same operations on the same values, so
+/// each ray is `make_ray`'s to the bit.
+#[inline(always)]
+fn make_rays(origins: &[Vec3; WIDTH], dirs: &[Vec3; WIDTH]) -> [Ray<f32>; WIDTH] {
+    let mut inv = [Lanes([0.0; WIDTH]); 3];
+    for (axis, inv) in inv.iter_mut().enumerate() {
+        for h in 0..QUADS {
+            let d = Vec4::from_array(std::array::from_fn(|i| dirs[4 * h + i][axis]));
+            // `trace::safe_dir`, lane by lane.
+            let sign = Vec4::select(d.cmpge(Vec4::ZERO), Vec4::ONE, Vec4::NEG_ONE);
+            let tiny = d.abs().cmplt(Vec4::splat(f32::MIN_DIR));
+            let safe = Vec4::select(tiny, sign * Vec4::splat(f32::MIN_DIR), d);
+            inv.set_quad(h, Vec4::ONE / safe);
+        }
+    }
+    std::array::from_fn(|i| {
+        let inv_dir = Vec3::new(inv[0].0[i], inv[1].0[i], inv[2].0[i]);
+        ray_with_inverse(origins[i], dirs[i], inv_dir, 0.0)
+    })
+}
+
+/// `trace::pixel_ray` for each of `pixels`, four at a time: the same
+/// operations in the same order per lane (`camera_ray`'s, the
+/// normalisation's, `make_ray`'s), so each ray is `pixel_ray`'s to the bit.
+fn pixel_rays(scene: &CpuScene<f32>, pixels: &[[u32; 2]; WIDTH]) -> [Ray<f32>; WIDTH] {
+    let (w, h) = (scene.size[0] as f32, scene.size[1] as f32);
+    let [hx, hy] = scene.half_extent;
+    let mut dirs = [Vec3::ZERO; WIDTH];
+    for q in 0..QUADS {
+        let x = Vec4::from_array(std::array::from_fn(|i| pixels[4 * q + i][0] as f32));
+        let y = Vec4::from_array(std::array::from_fn(|i| pixels[4 * q + i][1] as f32));
+        let two = Vec4::splat(2.0);
+        let ndc_x = (two * (x + Vec4::splat(0.5)) / Vec4::splat(w) - Vec4::ONE) * Vec4::splat(hx);
+        let ndc_y = (Vec4::ONE - two * (y + Vec4::splat(0.5)) / Vec4::splat(h)) * Vec4::splat(hy);
+        // `Real::normalize` of (x, y, -1): its dot product, left to right.
+        let len2 = ndc_x * ndc_x + ndc_y * ndc_y + Vec4::ONE;
+        let s = Vec4::ONE / len2.sqrt();
+        let (dx, dy, dz) = (ndc_x * s, ndc_y * s, Vec4::NEG_ONE * s);
+        for i in 0..4 {
+            dirs[4 * q + i] = Vec3::new(dx[i], dy[i], dz[i]);
+        }
+    }
+    make_rays(&[Vec3::ZERO; WIDTH], &dirs)
+}
+
 /// Whether a render of `scene` may take its pixels in packets: one sample
 /// a pixel, at its centre, with nothing moving, so every primary ray
 /// starts at the same time from the camera; and the robust methods, whose
@@ -637,10 +683,7 @@ pub fn colours(scene: &CpuScene<f32>, pixels: &[[u32; 2]]) -> [[f32; 3]; WIDTH] 
     }
     let active = (1u32 << n) - 1;
     // Lanes past the last pixel repeat it, unused.
-    let rays: [Ray<f32>; WIDTH] = std::array::from_fn(|i| {
-        let [x, y] = pixels[i.min(n - 1)];
-        pixel_ray(scene, x, y)
-    });
+    let rays = pixel_rays(scene, &std::array::from_fn(|i| pixels[i.min(n - 1)]));
     for _ in 0..n {
         count_ray(0);
     }
@@ -671,16 +714,21 @@ pub fn colours(scene: &CpuScene<f32>, pixels: &[[u32; 2]]) -> [[f32; 3]; WIDTH] 
             }
             continue;
         }
+        // `point_shadow_ray`'s rays (no surfaces at this light, so no
+        // grazing band). Lanes without a surface carry the primary ray,
+        // unused.
         let mut origins = [Vec3::ZERO; WIDTH];
-        let shadows: [Ray<f32>; WIDTH] = std::array::from_fn(|i| {
-            // Lanes without a surface carry a copy of the primary ray, unused.
-            let Some(sp) = &points[i] else {
-                return rays[i];
+        let mut dirs = [Vec3::ZERO; WIDTH];
+        for (i, sp) in points.iter().enumerate() {
+            (origins[i], dirs[i]) = match sp {
+                Some(sp) => {
+                    let origin = shadow_origin(scene, sp, light.position);
+                    (origin, light.position - origin)
+                }
+                None => (rays[i].origin, rays[i].dir),
             };
-            let (origin, ray, _) = point_shadow_ray(scene, sp, light.position, 0.0, &[]);
-            origins[i] = origin;
-            ray
-        });
+        }
+        let shadows = make_rays(&origins, &dirs);
         for _ in 0..lit.count_ones() {
             count_ray(1);
         }
@@ -923,5 +971,84 @@ mod tests {
             }
         }
         assert!(hits > 3000 && misses > 1000, "{hits} hits, {misses} misses");
+    }
+
+    /// Every field of a ray, as bits.
+    fn bits(r: &Ray<f32>) -> ([u32; 12], [usize; 3]) {
+        let v = |v: Vec3| v.to_array().map(f32::to_bits);
+        let [o, d, i, s] = [v(r.origin), v(r.dir), v(r.inv_dir), v(r.shear)];
+        let mut out = [0; 12];
+        for (k, x) in [o, d, i, s].iter().flatten().enumerate() {
+            out[k] = *x;
+        }
+        assert_eq!(r.time, 0.0);
+        (out, r.k)
+    }
+
+    /// The packet's rays are `make_ray`'s to the bit, for directions of
+    /// every kind: components zero of either sign, below, at and above
+    /// `MIN_DIR`, all three tiny, infinite, NaN.
+    #[test]
+    fn packet_rays_match_make_ray() {
+        let mut next = uniform(31);
+        let specials = [
+            0.0,
+            -0.0,
+            1e-31,
+            -1e-31,
+            f32::MIN_DIR,
+            -f32::MIN_DIR,
+            2e-30,
+            f32::INFINITY,
+            f32::NAN,
+            1.0,
+        ];
+        let mut special = 0;
+        for p in 0..500 {
+            let origins: [Vec3; WIDTH] =
+                std::array::from_fn(|_| Vec3::new(next(), next(), next()) * 8.0);
+            let dirs: [Vec3; WIDTH] = std::array::from_fn(|r| {
+                let mut d = Vec3::new(next(), next(), next());
+                if (p + r) % 3 == 0 {
+                    special += 1;
+                    d[special % 3] = specials[special % specials.len()];
+                    if p % 7 == 0 {
+                        d[(special + 1) % 3] = specials[(special / 3) % specials.len()];
+                    }
+                }
+                if p % 50 == 0 && r == 3 {
+                    d = Vec3::splat(1e-31);
+                }
+                d
+            });
+            let got = make_rays(&origins, &dirs);
+            for r in 0..WIDTH {
+                let want = make_ray(origins[r], dirs[r], 0.0);
+                assert_eq!(bits(&got[r]), bits(&want), "{:?}", dirs[r]);
+            }
+        }
+    }
+
+    /// The packet's primary rays are `pixel_ray`'s to the bit, on images of
+    /// odd and even sizes.
+    #[test]
+    fn packet_pixel_rays_match_pixel_ray() {
+        let (scene, bvh, geometry) = fixture(10);
+        for [w, h] in [[640, 480], [641, 241], [1, 1], [3, 7]] {
+            let camera = crate::camera::Camera::new(w, h);
+            let cpu = CpuScene::new(&scene, &bvh, &geometry, &camera, &CpuOptions::default());
+            let pixels: Vec<[u32; 2]> = (0..h)
+                .flat_map(|y| (0..w).map(move |x| [x, y]))
+                .filter(|&[x, y]| w < 100 || (x * 7 + y * 3) % 5 == 0)
+                .collect();
+            for chunk in pixels.chunks(WIDTH) {
+                let tile = std::array::from_fn(|i| chunk[i.min(chunk.len() - 1)]);
+                for (r, ray) in pixel_rays(&cpu, &tile).iter().enumerate() {
+                    let [x, y] = tile[r];
+                    let want = crate::cpu::trace::pixel_ray(&cpu, x, y);
+                    assert_eq!(bits(ray), bits(&want), "{w}x{h} pixel {x},{y}");
+                }
+            }
+        }
     }
 }

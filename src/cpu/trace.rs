@@ -299,18 +299,29 @@ pub fn rays_cast() -> [u64; 2] {
 
 #[inline(always)]
 pub fn make_ray<R: Real>(origin: R::V3, dir: R::V3, time: R) -> Ray<R> {
-    let safe = |d: R| {
-        if d.abs() < R::MIN_DIR {
-            d.sign_nonzero() * R::MIN_DIR
-        } else {
-            d
-        }
-    };
     let inv_dir = R::v3(
-        R::ONE / safe(dir[0]),
-        R::ONE / safe(dir[1]),
-        R::ONE / safe(dir[2]),
+        R::ONE / safe_dir(dir[0]),
+        R::ONE / safe_dir(dir[1]),
+        R::ONE / safe_dir(dir[2]),
     );
+    ray_with_inverse(origin, dir, inv_dir, time)
+}
+
+/// A direction component as `make_ray` divides by it: one too near zero
+/// for its inverse to stay finite moved off to `MIN_DIR`, with its sign.
+#[inline(always)]
+pub fn safe_dir<R: Real>(d: R) -> R {
+    if d.abs() < R::MIN_DIR {
+        d.sign_nonzero() * R::MIN_DIR
+    } else {
+        d
+    }
+}
+
+/// `make_ray` once its inverse direction is known (`packet::make_rays`
+/// takes the divisions for many rays at once).
+#[inline(always)]
+pub fn ray_with_inverse<R: Real>(origin: R::V3, dir: R::V3, inv_dir: R::V3, time: R) -> Ray<R> {
     let a = R::vabs(dir);
     let kz = if a[0] > a[1] && a[0] > a[2] {
         0
@@ -324,7 +335,13 @@ pub fn make_ray<R: Real>(origin: R::V3, dir: R::V3, time: R) -> Ray<R> {
     if dir[kz] < R::ZERO {
         std::mem::swap(&mut kx, &mut ky);
     }
-    let sz = R::ONE / dir[kz];
+    // The largest component is never moved by `safe_dir` but where all
+    // three are below MIN_DIR: its inverse is then the same division.
+    let sz = if a[kz] < R::MIN_DIR {
+        R::ONE / dir[kz]
+    } else {
+        inv_dir[kz]
+    };
     Ray {
         origin,
         dir,
@@ -893,19 +910,26 @@ pub fn point_shadow_ray<R: Real>(
     time: R,
     skip: &[u32],
 ) -> (R::V3, Ray<R>, R) {
-    let to_light = target - sp.p;
-    let side = if R::dot(sp.ng, to_light) >= R::ZERO {
-        sp.ng
-    } else {
-        -sp.ng
-    };
-    let origin = offset_ray(scene, sp.p, side, sp.scale);
+    let origin = shadow_origin(scene, sp, target);
     let graze = if skip.is_empty() {
         R::ZERO
     } else {
         in_plane_graze(sp, origin, target)
     };
     (origin, make_ray(origin, target - origin, time), graze)
+}
+
+/// Where the shadow ray from `sp` towards `target` starts: `sp` moved off
+/// its surface to the side `target` is on.
+#[inline(always)]
+pub fn shadow_origin<R: Real>(scene: &CpuScene<R>, sp: &SurfacePoint<R>, target: R::V3) -> R::V3 {
+    let to_light = target - sp.p;
+    let side = if R::dot(sp.ng, to_light) >= R::ZERO {
+        sp.ng
+    } else {
+        -sp.ng
+    };
+    offset_ray(scene, sp.p, side, sp.scale)
 }
 
 /// `point_term` once its shadow ray from `origin` found `blocker`.
