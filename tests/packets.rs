@@ -1,5 +1,5 @@
 //! The CPU reference's packets (`cpu::packet`): a render whose rows go in
-//! packets of sixteen rays gives the image every ray traced alone gives, on
+//! packets (`packet::WIDTH` rays, `packet::TILE` pixels) gives the image every ray traced alone gives, on
 //! every scene the packets take: the classic scenes, the project's own, the
 //! hard cases (any scale, lights on surfaces), reflections and
 //! area lights (which packets hand to single rays past the first hit).
@@ -82,7 +82,7 @@ fn assert_packets_agree(name: &str, scene: &Scene, camera: &Camera, methods: Met
                 let [px, py] = pixels[k.min(pixels.len() - 1)];
                 pixel_ray(&s, px, py)
             });
-            let active = (1 << pixels.len()) - 1;
+            let active = u32::MAX >> (32 - pixels.len());
             let packed_hit = packet::traverse(&s, &rays, active, f32::MAX, false)[lane];
             let alone_hit = traverse(&s, &rays[lane], f32::MAX, false, &[], 0.0);
             // The same t, or within the rounding of the triangle test's
