@@ -256,10 +256,11 @@ fn children_avx2<const ANY_HIT: bool>(
                 );
                 let passed = _mm256_cmp_ps::<_CMP_LE_OS>(t_near, t_far);
                 let hit = _mm256_movemask_ps(passed) as u32 & m8;
-                if hit != 0 {
-                    out.hits[lane] |= hit << (8 * g);
+                if hit == 0 {
+                    continue;
                 }
-                if hit != 0 && !ANY_HIT {
+                out.hits[lane] |= hit << (8 * g);
+                if !ANY_HIT {
                     _mm256_store_ps(out.near[lane].0.as_mut_ptr().add(8 * g), t_near);
                     // The nearest entry among the rays that hit: the others
                     // at +inf, then a min across the lanes.

@@ -127,7 +127,7 @@ const _: () = assert!(std::mem::size_of::<Node4>() == 128);
 const _: () = assert!(std::mem::size_of::<LeafBlock>() == 160);
 
 /// `Node4::leaves` packs a run's length (0 to 4) below this multiple of its
-/// first block: a tree of up to 2^32 / 8 leaf blocks (`collapse` checks).
+/// first block: runs for a tree of up to 2^32 / 8 leaf blocks.
 const RUN_LEN: usize = 8;
 
 /// Deepest a collapsed tree's stack gets: each node visited pushes at most
@@ -156,13 +156,10 @@ pub fn collapse(bvh: &Bvh, corners: impl Fn(u32) -> Option<[[f32; 3]; 3]>) -> Wi
         spans,
     };
     // Each node's leaves were numbered together (`collapse_node`), so a
-    // run is its least block and its count.
-    assert!(
-        out.leaves.len() < (u32::MAX as usize + 1) / RUN_LEN,
-        "{} leaf blocks: more than a collapsed tree can index",
-        out.leaves.len()
-    );
-    for i in 0..out.nodes.len() {
+    // run is its least block and its count. A tree too big for the words
+    // (over 2^29 leaves) keeps none: the runs only start loads early.
+    let runs = out.leaves.len() < (u32::MAX as usize + 1) / RUN_LEN;
+    for i in (0..out.nodes.len()).filter(|_| runs) {
         for lane in 0..4 {
             let child = out.nodes[i].child[lane];
             if child & LEAF != 0 {
