@@ -363,7 +363,6 @@ fn traverse_with<const AVX2: bool, const ANY_HIT: bool>(
         active,
         t_max,
     } = query;
-    let any_hit = ANY_HIT;
     let mut best = [Hit {
         t: t_max,
         prim: NO_HIT,
@@ -475,16 +474,18 @@ fn traverse_with<const AVX2: bool, const ANY_HIT: bool>(
             // The rays that reached it and have not found a hit nearer than
             // their entry since.
             let mut rays_in = hits[lane] & live;
-            for h in (0..QUADS).filter(|_| !ANY_HIT) {
-                let late = near[lane].quad(h).cmpgt(best_t.quad(h) * scale).bitmask();
-                rays_in &= !(late << (4 * h));
+            if !ANY_HIT {
+                for h in 0..QUADS {
+                    let late = near[lane].quad(h).cmpgt(best_t.quad(h) * scale).bitmask();
+                    rays_in &= !(late << (4 * h));
+                }
             }
             if !simd_leaves {
                 // As a single ray's, one ray at a time.
                 while rays_in != 0 {
                     let r = rays_in.trailing_zeros() as usize;
                     rays_in &= rays_in - 1;
-                    let done = hit_leaf(scene, &rays[r], index, &mut best[r], any_hit, &[], 0.0);
+                    let done = hit_leaf(scene, &rays[r], index, &mut best[r], ANY_HIT, &[], 0.0);
                     best_t.0[r] = best[r].t;
                     if done {
                         live &= !(1 << r);
@@ -499,7 +500,7 @@ fn traverse_with<const AVX2: bool, const ANY_HIT: bool>(
                         let prim = leaf.prims[k];
                         best[r] = Hit { t, prim, b1, b2 };
                         best_t.0[r] = t;
-                        if any_hit {
+                        if ANY_HIT {
                             live &= !(1 << r);
                         }
                     }
@@ -530,7 +531,7 @@ fn traverse_with<const AVX2: bool, const ANY_HIT: bool>(
                                     b2: 0.0,
                                 };
                                 best_t.0[r] = t.0[r];
-                                if any_hit {
+                                if ANY_HIT {
                                     live &= !(1 << r);
                                     rays_in &= !(1 << r);
                                 }
@@ -546,7 +547,7 @@ fn traverse_with<const AVX2: bool, const ANY_HIT: bool>(
                             if t < best[r].t {
                                 best[r] = Hit { t, prim, b1, b2 };
                                 best_t.0[r] = t;
-                                if any_hit {
+                                if ANY_HIT {
                                     live &= !(1 << r);
                                     rays_in &= !(1 << r);
                                 }

@@ -335,13 +335,7 @@ pub fn ray_with_inverse<R: Real>(origin: R::V3, dir: R::V3, inv_dir: R::V3, time
     if dir[kz] < R::ZERO {
         std::mem::swap(&mut kx, &mut ky);
     }
-    // The largest component is never moved by `safe_dir` but where all
-    // three are below MIN_DIR: its inverse is then the same division.
-    let sz = if a[kz] < R::MIN_DIR {
-        R::ONE / dir[kz]
-    } else {
-        inv_dir[kz]
-    };
+    let sz = R::ONE / dir[kz];
     Ray {
         origin,
         dir,

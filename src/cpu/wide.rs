@@ -155,26 +155,10 @@ pub fn collapse(bvh: &Bvh, corners: impl Fn(u32) -> Option<[[f32; 3]; 3]>) -> Wi
         leaves,
         spans,
     };
-    // Each node's leaves were numbered together (`collapse_node`), so a
-    // run is its least block and its count. A tree too big for the words
-    // (over 2^29 leaves) keeps none: the runs only start loads early.
-    let runs = out.leaves.len() < (u32::MAX as usize + 1) / RUN_LEN;
-    for i in (0..out.nodes.len()).filter(|_| runs) {
-        for lane in 0..4 {
-            let child = out.nodes[i].child[lane];
-            if child & LEAF != 0 {
-                continue;
-            }
-            let blocks = out.nodes[child as usize]
-                .child
-                .iter()
-                .filter(|&&c| c != EMPTY && c & LEAF != 0)
-                .map(|&c| (c & !LEAF) as usize);
-            let (first, count) = blocks.fold((usize::MAX, 0), |(f, n), b| (f.min(b), n + 1));
-            if count > 0 {
-                out.nodes[i].leaves[lane] = (first * RUN_LEN + count) as u32;
-            }
-        }
+    // A tree too big for the words (over 2^29 leaves) keeps no runs: they
+    // only start loads early.
+    if out.leaves.len() < (u32::MAX as usize + 1) / RUN_LEN {
+        set_leaf_runs(&mut out.nodes);
     }
     for (leaf, span) in out.leaves.iter_mut().zip(&out.spans) {
         let refs = &bvh.prim_refs[span.first as usize..(span.first + span.count) as usize];
@@ -199,6 +183,28 @@ pub fn collapse(bvh: &Bvh, corners: impl Fn(u32) -> Option<[[f32; 3]; 3]>) -> Wi
         }
     }
     out
+}
+
+/// Fills `Node4::leaves`: each node's leaves were numbered together
+/// (`collapse_node`), so a child's run is its least block and its count.
+fn set_leaf_runs(nodes: &mut [Node4]) {
+    for i in 0..nodes.len() {
+        for lane in 0..4 {
+            let child = nodes[i].child[lane];
+            if child & LEAF != 0 {
+                continue;
+            }
+            let blocks = nodes[child as usize]
+                .child
+                .iter()
+                .filter(|&&c| c != EMPTY && c & LEAF != 0)
+                .map(|&c| (c & !LEAF) as usize);
+            let (first, count) = blocks.fold((usize::MAX, 0), |(f, n), b| (f.min(b), n + 1));
+            if count > 0 {
+                nodes[i].leaves[lane] = (first * RUN_LEN + count) as u32;
+            }
+        }
+    }
 }
 
 /// The collapsed nodes alone (root first; empty for an empty tree), each
