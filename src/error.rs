@@ -39,6 +39,12 @@ pub enum Error {
     InvalidOption(String),
     #[error("cannot write {path}: {reason}")]
     BadOutput { path: PathBuf, reason: String },
+    #[error("the Embree harness {harness} failed on {scene}: {reason}")]
+    Harness {
+        harness: PathBuf,
+        scene: PathBuf,
+        reason: String,
+    },
     #[error(
         "this render needs about {parts} of memory, but {} is available; nothing was rendered: \
          render a smaller image (--width/--height), or free memory",

@@ -1179,3 +1179,121 @@ fn an_os_error_is_printed_once() {
     assert!(err.contains("cannot read scene file adir"), "{err}");
     assert_eq!(err.matches("os error").count(), 1, "{err}");
 }
+
+/// A stand-in for the Embree harness: a shell script that appends its
+/// arguments to `calls` and prints what `body` prints.
+#[cfg(unix)]
+fn fake_harness(dir: &Path, body: &str) -> std::path::PathBuf {
+    use std::os::unix::fs::PermissionsExt;
+    let path = dir.join("harness.sh");
+    std::fs::write(
+        &path,
+        format!(
+            "#!/bin/sh\necho \"$@\" >> \"{}\"\n{body}\n",
+            dir.join("calls").display()
+        ),
+    )
+    .expect("write the fake harness");
+    std::fs::set_permissions(&path, std::fs::Permissions::from_mode(0o755)).expect("chmod");
+    path
+}
+
+#[cfg(unix)]
+#[test]
+fn bench_embree_alternates_with_the_harness_and_reports_its_ratios() {
+    let d = tmp();
+    let harness = fake_harness(
+        d.path(),
+        "echo 'throughput: 1 Mrays/s'\n\
+         echo 'RESULT scene=x W=16 H=12 render_med_s=0.0040 rays=4242 mrays_s=1'",
+    );
+    let scene = showcase();
+    let o = glint(
+        &[
+            "--threads",
+            "1",
+            "bench",
+            "embree",
+            harness.to_str().unwrap(),
+            &scene,
+            "--no-gpu",
+            "--rounds",
+            "2",
+            "--repeat",
+            "1",
+            "--width",
+            "16",
+            "--height",
+            "12",
+        ],
+        d.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    let row = out
+        .lines()
+        .find(|l| l.starts_with("| showcase |"))
+        .unwrap_or_else(|| panic!("no showcase row in\n{out}"));
+    let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+    // scene, rays, glint CPU, single, CPU/single, packet8, CPU/packet8, GPU, GPU/packet8
+    assert!(cells[2].ends_with("/ 4242"), "{row}");
+    assert_eq!(cells[4], "4.0 / 4.0", "{row}");
+    assert_eq!(cells[6], "4.0 / 4.0", "{row}");
+    assert_eq!(cells[3].split(" / ").count(), 2, "{row}");
+    assert_ne!(cells[5], "-", "{row}");
+    assert_eq!(cells[8], "-", "{row}");
+    // Per round: single, then packet8, each with the render's settings.
+    let calls = std::fs::read_to_string(d.path().join("calls")).expect("the harness ran");
+    let calls: Vec<&str> = calls.lines().collect();
+    assert_eq!(calls.len(), 4, "{calls:?}");
+    for (call, mode) in calls.iter().zip(["single", "packet8", "single", "packet8"]) {
+        assert_eq!(
+            *call,
+            format!("{scene} --width 16 --height 12 --threads 1 --runs 1 --mode {mode}"),
+        );
+    }
+}
+
+#[cfg(unix)]
+#[test]
+fn bench_embree_reports_a_failing_or_silent_harness() {
+    let d = tmp();
+    let scene = showcase();
+    let args = |h: &Path| -> Vec<String> {
+        [
+            "bench",
+            "embree",
+            h.to_str().unwrap(),
+            &scene,
+            "--no-gpu",
+            "--rounds",
+            "1",
+            "--repeat",
+            "1",
+        ]
+        .into_iter()
+        .chain(SMALL)
+        .map(String::from)
+        .collect()
+    };
+    let run = |h: &Path| {
+        let a = args(h);
+        glint(&a.iter().map(String::as_str).collect::<Vec<_>>(), d.path())
+    };
+    let failing = fake_harness(d.path(), "echo 'cannot open scene' >&2\nexit 3");
+    let o = run(&failing);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("cannot open scene"), "{}", stderr(&o));
+    assert!(stderr(&o).contains(&scene), "{}", stderr(&o));
+    let silent = fake_harness(d.path(), "echo 'done'");
+    let o = run(&silent);
+    assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+    assert!(stderr(&o).contains("no `RESULT"), "{}", stderr(&o));
+    let o = run(&d.path().join("missing"));
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("no such harness program"),
+        "{}",
+        stderr(&o)
+    );
+}

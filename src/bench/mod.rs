@@ -1,14 +1,20 @@
 //! Benchmarks, one file each: render times per scene and backend
 //! (`scenes`, `glint bench`, `cargo bench`), the hard-case suite's counts
-//! and what the robust methods cost (`hard`, `glint bench hard`), and the
+//! and what the robust methods cost (`hard`, `glint bench hard`), the
 //! specialised shader against the generic one (`specialize`, `glint bench
-//! specialize`). `glint accuracy` (src/accuracy.rs) measures error against
-//! time.
+//! specialize`), and glint against an Embree renderer of the same spec
+//! (`embree`, `glint bench embree`). `glint accuracy` (src/accuracy.rs)
+//! measures error against time.
 
+mod embree;
 mod hard;
 mod scenes;
 mod specialize;
 
+pub use embree::{
+    parse_result, run_embree, run_harness, EmbreeOptions, EmbreeReport, EmbreeScene, HarnessRun,
+    Mode,
+};
 pub use hard::{run_hard, HardOptions, HardReport};
 pub use scenes::{run, BenchOptions, BenchReport, SceneResult};
 pub use specialize::{run_specialize, specialize_scenes, SpecializeOptions};

@@ -21,6 +21,7 @@ impl BenchArgs {
             Some(BenchCommand::Specialize(_)) => {
                 "`glint bench specialize` measures GPU shaders only; it needs a Vulkan device"
             }
+            Some(BenchCommand::Embree(_)) => "or compare the CPU reference alone: `--no-gpu`",
             _ => "or time the CPU reference alone: `--no-gpu`",
         }
     }
@@ -35,6 +36,43 @@ enum BenchCommand {
     /// compiled in, switched off by the settings): SPIR-V size, pipeline
     /// build time and render time, as a markdown table.
     Specialize(SpecializeArgs),
+    /// glint against an Embree renderer of the same spec, alternating: per
+    /// scene and round, glint's CPU reference, glint's GPU, then the
+    /// harness's single rays and 8-wide packets, on the same threads; the
+    /// medians and the speed ratios (Embree time / glint time) as a
+    /// markdown table.
+    Embree(EmbreeArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct EmbreeArgs {
+    /// The harness program, run as `HARNESS SCENE --width W --height H
+    /// --threads T --runs R --mode single|packet8`, ending its output with a
+    /// `RESULT ... render_med_s=SECONDS rays=N` line
+    /// (../shared/tools/embree_bench.cpp is one).
+    harness: PathBuf,
+    /// Scene files; default: the classic scenes (when present) and every
+    /// scene in scenes/.
+    scenes: Vec<PathBuf>,
+    /// Rounds of all four programs per scene.
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u32).range(1..=100))]
+    rounds: u32,
+    /// Renders per program and round; each cell is their median.
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    repeat: u32,
+    #[arg(long, default_value_t = glint::camera::DEFAULT_WIDTH)]
+    width: u32,
+    #[arg(long, default_value_t = glint::camera::DEFAULT_HEIGHT)]
+    height: u32,
+    /// Skip glint's GPU.
+    #[arg(long)]
+    no_gpu: bool,
+    /// Skip glint's CPU reference.
+    #[arg(long)]
+    no_cpu: bool,
+    /// Vulkan device by index or name (see `glint devices`).
+    #[arg(long)]
+    device: Option<String>,
 }
 
 #[derive(Args, Debug)]
@@ -111,6 +149,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<ExitCode> {
     match args.command {
         Some(BenchCommand::Hard(hard)) => run_hard(hard),
         Some(BenchCommand::Specialize(args)) => run_specialize(args),
+        Some(BenchCommand::Embree(args)) => run_embree(args),
         None => run_scenes(args.scenes),
     }
 }
@@ -160,6 +199,48 @@ fn run_specialize(args: SpecializeArgs) -> anyhow::Result<ExitCode> {
     };
     let table = glint::bench::run_specialize(&options, &mut |line| eprintln!("{line}"))?;
     println!("{table}");
+    Ok(ExitCode::SUCCESS)
+}
+
+fn run_embree(args: EmbreeArgs) -> anyhow::Result<ExitCode> {
+    // Checked before any work: a wrong path fails in a second, not after
+    // the first scene's renders.
+    if !args.harness.is_file() {
+        return Err(glint::Error::InvalidOption(format!(
+            "{}: no such harness program; build one with `make -C ../shared/tools`",
+            args.harness.display()
+        ))
+        .into());
+    }
+    if args.no_gpu && args.no_cpu {
+        return Err(glint::Error::InvalidOption(
+            "--no-gpu and --no-cpu together leave glint nothing to time; drop one".into(),
+        )
+        .into());
+    }
+    anyhow::ensure!(args.width > 0 && args.height > 0, "the image needs pixels");
+    let scenes = if args.scenes.is_empty() {
+        default_scenes(&mut |note| eprintln!("note: {note}"))
+    } else {
+        args.scenes
+    };
+    anyhow::ensure!(
+        !scenes.is_empty(),
+        "no scenes to benchmark: name some scene files"
+    );
+    let options = glint::bench::EmbreeOptions {
+        harness: args.harness,
+        scenes,
+        width: args.width,
+        height: args.height,
+        repeat: args.repeat as usize,
+        rounds: args.rounds as usize,
+        gpu: !args.no_gpu,
+        cpu: !args.no_cpu,
+        device: args.device.as_deref().map(DeviceSelector::parse),
+    };
+    let report = glint::bench::run_embree(&options, &mut |line| eprintln!("{line}"))?;
+    println!("{}", report.to_markdown());
     Ok(ExitCode::SUCCESS)
 }
 

@@ -1,0 +1,393 @@
+//! glint against an Embree renderer of the same spec (`glint bench
+//! embree`): per scene, rounds of glint's CPU reference, glint's GPU, and the
+//! harness's single rays and eight-wide packets, one program after the
+//! other, so each ratio compares programs measured seconds apart on the same
+//! machine and threads. The harness is a separate program, not part of glint
+//! (`../shared/tools/embree_bench.cpp` builds one); glint runs it with
+//! `SCENE --width W --height H --threads T --runs R --mode single|packet8`
+//! and reads the last line of its output that starts with `RESULT`, whose
+//! `render_med_s=` and `rays=` fields give its median render and rays cast.
+
+use std::fmt::Write as _;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Duration;
+
+use super::{repeat, Stat};
+use crate::cpu::Precision;
+use crate::gpu::DeviceSelector;
+use crate::render::{Backend, RenderOptions, Renderer};
+use crate::scene::read_scene;
+use crate::timing::{CLOSEST_RAYS, SHADOW_RAYS};
+use crate::Error;
+
+#[derive(Clone, Debug)]
+pub struct EmbreeOptions {
+    /// The harness program.
+    pub harness: PathBuf,
+    pub scenes: Vec<PathBuf>,
+    pub width: u32,
+    pub height: u32,
+    /// Renders per measurement (glint's, and the harness's `--runs`).
+    pub repeat: usize,
+    /// Rounds of all four programs per scene.
+    pub rounds: usize,
+    pub gpu: bool,
+    pub cpu: bool,
+    pub device: Option<DeviceSelector>,
+}
+
+/// The harness's two traversal modes.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Mode {
+    Single,
+    Packet8,
+}
+
+impl Mode {
+    fn arg(self) -> &'static str {
+        match self {
+            Mode::Single => "single",
+            Mode::Packet8 => "packet8",
+        }
+    }
+}
+
+/// What one harness run reports.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HarnessRun {
+    /// Median render time.
+    pub median: Duration,
+    /// Rays one render casts (primary and shadow).
+    pub rays: Option<u64>,
+}
+
+/// The last `RESULT` line of a harness's output, if it has a
+/// `render_med_s=` field that is a time.
+pub fn parse_result(stdout: &str) -> Option<HarnessRun> {
+    let line = stdout.lines().rev().find(|l| l.starts_with("RESULT "))?;
+    let field = |key: &str| {
+        line.split_whitespace()
+            .find_map(|kv| kv.strip_prefix(key)?.strip_prefix('='))
+    };
+    let seconds: f64 = field("render_med_s")?.parse().ok()?;
+    let median = Duration::try_from_secs_f64(seconds).ok()?;
+    let rays = field("rays").and_then(|r| r.parse().ok());
+    Some(HarnessRun { median, rays })
+}
+
+/// Runs the harness once on `scene`.
+pub fn run_harness(
+    options: &EmbreeOptions,
+    scene: &Path,
+    mode: Mode,
+    threads: usize,
+) -> Result<HarnessRun, Error> {
+    let fail = |reason: String| Error::Harness {
+        harness: options.harness.clone(),
+        scene: scene.to_path_buf(),
+        reason,
+    };
+    let output = Command::new(&options.harness)
+        .arg(scene)
+        .args(["--width", &options.width.to_string()])
+        .args(["--height", &options.height.to_string()])
+        .args(["--threads", &threads.to_string()])
+        .args(["--runs", &options.repeat.max(1).to_string()])
+        .args(["--mode", mode.arg()])
+        .output()
+        .map_err(|e| fail(format!("cannot run it: {e}")))?;
+    let stdout = String::from_utf8_lossy(&output.stdout);
+    if !output.status.success() {
+        let stderr = String::from_utf8_lossy(&output.stderr);
+        return Err(fail(format!(
+            "{} ({})",
+            output.status,
+            last_lines(&stderr, 3).as_deref().unwrap_or("no message")
+        )));
+    }
+    parse_result(&stdout).ok_or_else(|| {
+        fail(format!(
+            "no `RESULT ... render_med_s=SECONDS` line in its output (it ended: {})",
+            last_lines(&stdout, 2).as_deref().unwrap_or("nothing")
+        ))
+    })
+}
+
+/// The last `n` lines of `text` (trailing blank ones dropped), joined by
+/// " / " to fit an error message's line.
+fn last_lines(text: &str, n: usize) -> Option<String> {
+    let lines: Vec<&str> = text.trim_end().lines().collect();
+    if lines.iter().all(|l| l.trim().is_empty()) {
+        return None;
+    }
+    Some(lines[lines.len().saturating_sub(n)..].join(" / "))
+}
+
+/// One scene's medians, one per round.
+#[derive(Clone, Debug, Default)]
+pub struct EmbreeScene {
+    pub name: String,
+    /// Rays one render casts: glint's count, the harness's.
+    pub rays: Option<u64>,
+    pub harness_rays: Option<u64>,
+    pub cpu: Vec<Duration>,
+    pub gpu: Vec<Duration>,
+    pub single: Vec<Duration>,
+    pub packet8: Vec<Duration>,
+}
+
+#[derive(Clone, Debug)]
+pub struct EmbreeReport {
+    pub harness: PathBuf,
+    pub device: Option<String>,
+    pub threads: usize,
+    pub width: u32,
+    pub height: u32,
+    pub repeat: usize,
+    pub rounds: usize,
+    pub scenes: Vec<EmbreeScene>,
+}
+
+/// Runs the comparison; `progress` receives a line per finished round.
+pub fn run_embree(
+    options: &EmbreeOptions,
+    progress: &mut dyn FnMut(&str),
+) -> Result<EmbreeReport, Error> {
+    let n = options.repeat.max(1);
+    let threads = rayon::current_num_threads();
+    let base = RenderOptions {
+        width: options.width,
+        height: options.height,
+        device: options.device.clone(),
+        ..RenderOptions::default()
+    };
+    let gpu = options
+        .gpu
+        .then(|| {
+            Renderer::new(&RenderOptions {
+                backend: Backend::Gpu,
+                ..base.clone()
+            })
+        })
+        .transpose()?;
+    let cpu = options
+        .cpu
+        .then(|| {
+            Renderer::new(&RenderOptions {
+                backend: Backend::Cpu,
+                device: None,
+                precision: Precision::F32,
+                ..base.clone()
+            })
+        })
+        .transpose()?;
+    let mut report = EmbreeReport {
+        harness: options.harness.clone(),
+        device: gpu.as_ref().map(Renderer::name),
+        threads,
+        width: options.width,
+        height: options.height,
+        repeat: n,
+        rounds: options.rounds.max(1),
+        scenes: Vec::new(),
+    };
+    for path in &options.scenes {
+        let scene = read_scene(path)?;
+        let mut result = EmbreeScene {
+            name: path.file_stem().map_or_else(
+                || path.display().to_string(),
+                |s| s.to_string_lossy().into_owned(),
+            ),
+            ..EmbreeScene::default()
+        };
+        let cpu_ready = match &cpu {
+            Some(r) => {
+                let ready = r.prepare_scene(&scene);
+                // Untimed, as the GPU's: the first render also faults in
+                // its buffers and wakes the thread pool.
+                r.render_prepared_scene(&scene, &ready, &|_, _| {})?;
+                Some(ready)
+            }
+            None => None,
+        };
+        let gpu_ready = match &gpu {
+            Some(r) => {
+                r.prepare_pipeline(&scene)?;
+                let ready = r.prepare_scene(&scene);
+                // Untimed: drivers compile lazily on first use.
+                r.render_prepared_scene(&scene, &ready, &|_, _| {})?;
+                Some(ready)
+            }
+            None => None,
+        };
+        for round in 1..=report.rounds {
+            let mut timed = |r: &Renderer, ready| -> Result<Duration, Error> {
+                let mut rays = None;
+                let stat = repeat(n, || {
+                    let out = r.render_prepared_scene(&scene, ready, &|_, _| {})?;
+                    rays = out.timings.has_count(CLOSEST_RAYS).then(|| {
+                        out.timings.counted(CLOSEST_RAYS) + out.timings.counted(SHADOW_RAYS)
+                    });
+                    Ok(())
+                })?;
+                result.rays = rays.or(result.rays);
+                Ok(stat.map_or(Duration::ZERO, |s: Stat| s.median))
+            };
+            if let (Some(r), Some(ready)) = (&cpu, &cpu_ready) {
+                let t = timed(r, ready)?;
+                result.cpu.push(t);
+            }
+            if let (Some(r), Some(ready)) = (&gpu, &gpu_ready) {
+                let t = timed(r, ready)?;
+                result.gpu.push(t);
+            }
+            for (mode, times) in [
+                (Mode::Single, &mut result.single),
+                (Mode::Packet8, &mut result.packet8),
+            ] {
+                let run = run_harness(options, path, mode, threads)?;
+                result.harness_rays = run.rays.or(result.harness_rays);
+                times.push(run.median);
+            }
+            progress(&format!(
+                "{} round {round}: glint CPU {} GPU {}, Embree single {} packet8 {} (ms)",
+                result.name,
+                ms_last(&result.cpu),
+                ms_last(&result.gpu),
+                ms_last(&result.single),
+                ms_last(&result.packet8)
+            ));
+        }
+        report.scenes.push(result);
+    }
+    Ok(report)
+}
+
+fn ms(d: Duration) -> f64 {
+    d.as_secs_f64() * 1e3
+}
+
+fn ms_last(times: &[Duration]) -> String {
+    times
+        .last()
+        .map_or_else(|| "-".into(), |&d| format!("{:.1}", ms(d)))
+}
+
+/// "a / b / c" in milliseconds, or "-".
+fn rounds_cell(times: &[Duration]) -> String {
+    if times.is_empty() {
+        return "-".into();
+    }
+    let cells: Vec<String> = times.iter().map(|&d| format!("{:.1}", ms(d))).collect();
+    cells.join(" / ")
+}
+
+/// The range over rounds of Embree's time / glint's time, round by round,
+/// or "-".
+fn ratio_cell(embree: &[Duration], glint: &[Duration]) -> String {
+    let ratios: Vec<f64> = embree
+        .iter()
+        .zip(glint)
+        .filter(|(_, g)| !g.is_zero())
+        .map(|(e, g)| e.as_secs_f64() / g.as_secs_f64())
+        .collect();
+    let lo = ratios.iter().copied().fold(f64::INFINITY, f64::min);
+    let hi = ratios.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    if ratios.is_empty() {
+        "-".into()
+    } else if format!("{lo:.2}") == format!("{hi:.2}") {
+        format!("{lo:.2}")
+    } else {
+        format!("{lo:.2}-{hi:.2}")
+    }
+}
+
+impl EmbreeReport {
+    /// Per scene, each program's medians round by round and the ratios
+    /// (Embree time / glint time, so above 1 glint is faster), as Markdown.
+    pub fn to_markdown(&self) -> String {
+        let mut out = String::new();
+        let _ = writeln!(
+            out,
+            "{}x{}, {} threads each, median of {} renders per program and round, {} round(s) \
+             (ms, round 1 / round 2 / ...); ratio = Embree time / glint time, its range over \
+             the rounds; Embree: {}",
+            self.width,
+            self.height,
+            self.threads,
+            self.repeat,
+            self.rounds,
+            self.harness.display()
+        );
+        if let Some(device) = &self.device {
+            let _ = writeln!(out, "{device}");
+        }
+        let _ = writeln!(out);
+        let _ = writeln!(
+            out,
+            "| scene | rays (glint / Embree) | glint CPU | Embree single | **CPU / single** | \
+             Embree packet8 | CPU / packet8 | glint GPU | **GPU / packet8** |"
+        );
+        let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|---:|---:|---:|");
+        let count = |r: Option<u64>| r.map_or_else(|| "-".into(), |r| r.to_string());
+        for s in &self.scenes {
+            let _ = writeln!(
+                out,
+                "| {} | {} / {} | {} | {} | {} | {} | {} | {} | {} |",
+                s.name,
+                count(s.rays),
+                count(s.harness_rays),
+                rounds_cell(&s.cpu),
+                rounds_cell(&s.single),
+                ratio_cell(&s.single, &s.cpu),
+                rounds_cell(&s.packet8),
+                ratio_cell(&s.packet8, &s.cpu),
+                rounds_cell(&s.gpu),
+                ratio_cell(&s.packet8, &s.gpu),
+            );
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const OUTPUT: &str = "scene x.scene: 182 triangles\n\
+        throughput: 48.34 Mrays/s\n\
+        RESULT scene=x.scene tris=182 spheres=0 W=640 H=480 mode=packet8 threads=2 \
+        build_s=0.0174 render_med_s=0.0143 rays=689666 mrays_s=48.34\n";
+
+    #[test]
+    fn reads_the_median_and_rays_of_the_result_line() {
+        let run = parse_result(OUTPUT).expect("a RESULT line");
+        assert_eq!(run.median, Duration::from_secs_f64(0.0143));
+        assert_eq!(run.rays, Some(689_666));
+    }
+
+    #[test]
+    fn output_without_a_usable_result_line_is_none() {
+        assert_eq!(parse_result("throughput: 1 Mrays/s\n"), None);
+        assert_eq!(parse_result("RESULT scene=x rays=5\n"), None);
+        assert_eq!(parse_result("RESULT render_med_s=fast\n"), None);
+        assert_eq!(parse_result("RESULT render_med_s=-1\n"), None);
+    }
+
+    #[test]
+    fn ratios_are_embree_over_glint_round_by_round() {
+        let d = Duration::from_millis;
+        assert_eq!(ratio_cell(&[d(20), d(30)], &[d(10), d(10)]), "2.00-3.00");
+        assert_eq!(ratio_cell(&[d(10)], &[d(40)]), "0.25");
+        assert_eq!(ratio_cell(&[d(10)], &[]), "-");
+        assert_eq!(rounds_cell(&[d(1), d(2)]), "1.0 / 2.0");
+    }
+
+    #[test]
+    fn last_lines_keeps_the_tail() {
+        assert_eq!(last_lines("a\nb\nc\n", 2).as_deref(), Some("b / c"));
+        assert_eq!(last_lines("only", 3).as_deref(), Some("only"));
+        assert_eq!(last_lines("\n", 1), None);
+    }
+}
