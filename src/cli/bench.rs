@@ -60,19 +60,59 @@ pub struct EmbreeArgs {
     /// Renders per program and round; each cell is their median.
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
     repeat: u32,
+    #[command(flatten)]
+    timed: Timed,
+}
+
+/// The image size and backends a timing benchmark renders with.
+#[derive(Args, Debug)]
+pub struct Timed {
     #[arg(long, default_value_t = glint::camera::DEFAULT_WIDTH)]
     width: u32,
     #[arg(long, default_value_t = glint::camera::DEFAULT_HEIGHT)]
     height: u32,
-    /// Skip glint's GPU.
+    /// Skip the GPU.
     #[arg(long)]
     no_gpu: bool,
-    /// Skip glint's CPU reference.
+    /// Skip the CPU reference.
     #[arg(long)]
     no_cpu: bool,
     /// Vulkan device by index or name (see `glint devices`).
     #[arg(long)]
     device: Option<String>,
+}
+
+impl Timed {
+    /// An error when nothing is left to time or the image is empty.
+    fn check(&self) -> anyhow::Result<()> {
+        if self.no_gpu && self.no_cpu {
+            return Err(glint::Error::InvalidOption(
+                "--no-gpu and --no-cpu together leave nothing to time; drop one".into(),
+            )
+            .into());
+        }
+        anyhow::ensure!(self.width > 0 && self.height > 0, "the image needs pixels");
+        Ok(())
+    }
+
+    fn device(&self) -> Option<DeviceSelector> {
+        self.device.as_deref().map(DeviceSelector::parse)
+    }
+}
+
+/// `scenes`, or the default set when none are named; an error when that is
+/// empty too.
+fn scenes_or_default(scenes: Vec<PathBuf>) -> anyhow::Result<Vec<PathBuf>> {
+    let scenes = if scenes.is_empty() {
+        default_scenes(&mut |note| eprintln!("note: {note}"))
+    } else {
+        scenes
+    };
+    anyhow::ensure!(
+        !scenes.is_empty(),
+        "no scenes to benchmark: name some scene files"
+    );
+    Ok(scenes)
 }
 
 #[derive(Args, Debug)]
@@ -123,22 +163,11 @@ pub struct SceneArgs {
     /// Renders per scene and backend; the report gives the median.
     #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
     repeat: u32,
-    #[arg(long, default_value_t = glint::camera::DEFAULT_WIDTH)]
-    width: u32,
-    #[arg(long, default_value_t = glint::camera::DEFAULT_HEIGHT)]
-    height: u32,
-    /// Skip the GPU.
-    #[arg(long)]
-    no_gpu: bool,
-    /// Skip the CPU reference (both precisions).
-    #[arg(long)]
-    no_cpu: bool,
+    #[command(flatten)]
+    timed: Timed,
     /// Also time the CPU reference in f64.
     #[arg(long)]
     f64: bool,
-    /// Vulkan device by index or name (see `glint devices`).
-    #[arg(long)]
-    device: Option<String>,
     /// Also draw render time against primitive count, one line per
     /// backend, into this file (.svg, or .png drawn by glint itself).
     #[arg(long, value_name = "FILE")]
@@ -212,32 +241,18 @@ fn run_embree(args: EmbreeArgs) -> anyhow::Result<ExitCode> {
         ))
         .into());
     }
-    if args.no_gpu && args.no_cpu {
-        return Err(glint::Error::InvalidOption(
-            "--no-gpu and --no-cpu together leave glint nothing to time; drop one".into(),
-        )
-        .into());
-    }
-    anyhow::ensure!(args.width > 0 && args.height > 0, "the image needs pixels");
-    let scenes = if args.scenes.is_empty() {
-        default_scenes(&mut |note| eprintln!("note: {note}"))
-    } else {
-        args.scenes
-    };
-    anyhow::ensure!(
-        !scenes.is_empty(),
-        "no scenes to benchmark: name some scene files"
-    );
+    args.timed.check()?;
+    let scenes = scenes_or_default(args.scenes)?;
     let options = glint::bench::EmbreeOptions {
         harness: args.harness,
         scenes,
-        width: args.width,
-        height: args.height,
+        width: args.timed.width,
+        height: args.timed.height,
         repeat: args.repeat as usize,
         rounds: args.rounds as usize,
-        gpu: !args.no_gpu,
-        cpu: !args.no_cpu,
-        device: args.device.as_deref().map(DeviceSelector::parse),
+        gpu: !args.timed.no_gpu,
+        cpu: !args.timed.no_cpu,
+        device: args.timed.device(),
     };
     let report = glint::bench::run_embree(&options, &mut |line| eprintln!("{line}"))?;
     println!("{}", report.to_markdown());
@@ -245,30 +260,17 @@ fn run_embree(args: EmbreeArgs) -> anyhow::Result<ExitCode> {
 }
 
 fn run_scenes(args: SceneArgs) -> anyhow::Result<ExitCode> {
-    let scenes = if args.scenes.is_empty() {
-        default_scenes(&mut |note| eprintln!("note: {note}"))
-    } else {
-        args.scenes
-    };
-    anyhow::ensure!(
-        !scenes.is_empty(),
-        "no scenes to benchmark: name some scene files"
-    );
-    if args.no_gpu && args.no_cpu {
-        return Err(glint::Error::InvalidOption(
-            "--no-gpu and --no-cpu together leave nothing to time; drop one".into(),
-        )
-        .into());
-    }
+    args.timed.check()?;
+    let scenes = scenes_or_default(args.scenes)?;
     let options = BenchOptions {
         scenes,
-        width: args.width,
-        height: args.height,
+        width: args.timed.width,
+        height: args.timed.height,
         repeat: args.repeat as usize,
-        gpu: !args.no_gpu,
-        cpu_f32: !args.no_cpu,
-        cpu_f64: !args.no_cpu && args.f64,
-        device: args.device.as_deref().map(DeviceSelector::parse),
+        gpu: !args.timed.no_gpu,
+        cpu_f32: !args.timed.no_cpu,
+        cpu_f64: !args.timed.no_cpu && args.f64,
+        device: args.timed.device(),
     };
     if let Some(plot) = &args.plot {
         // Before the work, not after it: a bad path fails in a second.
