@@ -137,6 +137,19 @@ pub struct EmbreeScene {
     pub packet8: Vec<Duration>,
 }
 
+impl EmbreeScene {
+    /// How far the harness's ray count is from glint's, as a fraction of
+    /// glint's, when it is more than 0.1%: then the two did not render the
+    /// same work and their ratio compares different renders.
+    pub fn rays_differ(&self) -> Option<f64> {
+        let (Some(ours), Some(theirs)) = (self.rays, self.harness_rays) else {
+            return None;
+        };
+        let off = (theirs as f64 - ours as f64).abs() / (ours as f64).max(1.0);
+        (off > 1e-3).then_some(off)
+    }
+}
+
 #[derive(Clone, Debug)]
 pub struct EmbreeReport {
     pub harness: PathBuf,
@@ -259,6 +272,16 @@ pub fn run_embree(
                 ms_last(&result.packet8)
             ));
         }
+        if let Some(off) = result.rays_differ() {
+            progress(&format!(
+                "warning: {}: the harness cast {} rays and glint {} ({:.1}% apart), so they \
+                 did not render the same work",
+                result.name,
+                result.harness_rays.unwrap_or_default(),
+                result.rays.unwrap_or_default(),
+                off * 100.0
+            ));
+        }
         report.scenes.push(result);
     }
     Ok(report)
@@ -332,12 +355,16 @@ impl EmbreeReport {
         let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|---:|---:|---:|");
         let count = |r: Option<u64>| r.map_or_else(|| "-".into(), |r| r.to_string());
         for s in &self.scenes {
+            let differ = s.rays_differ().map_or_else(String::new, |off| {
+                format!(" (**differ**, {:.1}%)", off * 100.0)
+            });
             let _ = writeln!(
                 out,
-                "| {} | {} / {} | {} | {} | {} | {} | {} | {} | {} |",
+                "| {} | {} / {}{} | {} | {} | {} | {} | {} | {} | {} |",
                 s.name,
                 count(s.rays),
                 count(s.harness_rays),
+                differ,
                 rounds_cell(&s.cpu),
                 rounds_cell(&s.single),
                 ratio_cell(&s.single, &s.cpu),
@@ -345,6 +372,19 @@ impl EmbreeReport {
                 ratio_cell(&s.packet8, &s.cpu),
                 rounds_cell(&s.gpu),
                 ratio_cell(&s.packet8, &s.gpu),
+            );
+        }
+        let differing: Vec<&str> = self
+            .scenes
+            .iter()
+            .filter(|s| s.rays_differ().is_some())
+            .map(|s| s.name.as_str())
+            .collect();
+        if !differing.is_empty() {
+            let _ = writeln!(
+                out,
+                "\nThe two cast different rays on {}: their ratios there compare different work.",
+                differing.join(", ")
             );
         }
         out
@@ -382,6 +422,20 @@ mod tests {
         assert_eq!(ratio_cell(&[d(10)], &[d(40)]), "0.25");
         assert_eq!(ratio_cell(&[d(10)], &[]), "-");
         assert_eq!(rounds_cell(&[d(1), d(2)]), "1.0 / 2.0");
+    }
+
+    #[test]
+    fn ray_counts_more_than_a_thousandth_apart_differ() {
+        let scene = |ours, theirs| EmbreeScene {
+            rays: Some(ours),
+            harness_rays: Some(theirs),
+            ..EmbreeScene::default()
+        };
+        assert_eq!(scene(100_000, 100_000).rays_differ(), None);
+        assert_eq!(scene(100_000, 100_050).rays_differ(), None);
+        let off = scene(100_000, 100_200).rays_differ().expect("0.2% apart");
+        assert!((off - 0.002).abs() < 1e-9, "{off}");
+        assert_eq!(EmbreeScene::default().rays_differ(), None);
     }
 
     #[test]
