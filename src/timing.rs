@@ -64,6 +64,12 @@ impl Timings {
             .map_or(0, |c| c.1)
     }
 
+    /// Closest-hit and shadow rays together, if the render counted them.
+    pub fn rays(&self) -> Option<u64> {
+        self.has_count(CLOSEST_RAYS)
+            .then(|| self.counted(CLOSEST_RAYS) + self.counted(SHADOW_RAYS))
+    }
+
     pub fn extend(&mut self, other: &Timings) {
         for &(name, d) in &other.phases {
             self.add(name, d);

@@ -1,8 +1,9 @@
-//! The CPU reference's packets (`cpu::packet`): a render whose rows go in
-//! packets (`packet::WIDTH` rays, `packet::TILE` pixels) gives the image every ray traced alone gives, on
-//! every scene the packets take: the classic scenes, the project's own, the
-//! hard cases (any scale, lights on surfaces), reflections and
-//! area lights (which packets hand to single rays past the first hit).
+//! The CPU reference's packets (`cpu::packet`): a render whose pixels go
+//! in packets (`packet::WIDTH` rays, `packet::TILE` pixels) gives the image
+//! every ray traced alone gives, on every scene the packets take: the
+//! classic scenes, the project's own, the hard cases (any scale, lights on
+//! surfaces), reflections and area lights (which packets hand to single
+//! rays past the first hit).
 
 mod common;
 

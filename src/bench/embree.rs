@@ -13,12 +13,11 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
 
-use super::{repeat, Stat};
+use super::{repeat, scene_name, Stat};
 use crate::cpu::Precision;
 use crate::gpu::DeviceSelector;
 use crate::render::{Backend, RenderOptions, Renderer};
 use crate::scene::read_scene;
-use crate::timing::{CLOSEST_RAYS, SHADOW_RAYS};
 use crate::Error;
 
 #[derive(Clone, Debug)]
@@ -208,10 +207,7 @@ pub fn run_embree(
     for path in &options.scenes {
         let scene = read_scene(path)?;
         let mut result = EmbreeScene {
-            name: path.file_stem().map_or_else(
-                || path.display().to_string(),
-                |s| s.to_string_lossy().into_owned(),
-            ),
+            name: scene_name(path),
             ..EmbreeScene::default()
         };
         let cpu_ready = match &cpu {
@@ -239,9 +235,7 @@ pub fn run_embree(
                 let mut rays = None;
                 let stat = repeat(n, || {
                     let out = r.render_prepared_scene(&scene, ready, &|_, _| {})?;
-                    rays = out.timings.has_count(CLOSEST_RAYS).then(|| {
-                        out.timings.counted(CLOSEST_RAYS) + out.timings.counted(SHADOW_RAYS)
-                    });
+                    rays = out.timings.rays();
                     Ok(())
                 })?;
                 result.rays = rays.or(result.rays);

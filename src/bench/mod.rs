@@ -89,6 +89,14 @@ pub fn default_scenes(note: &mut dyn FnMut(&str)) -> Vec<PathBuf> {
     out
 }
 
+/// A scene's name in reports: its file's stem (the whole path if none).
+pub(crate) fn scene_name(path: &std::path::Path) -> String {
+    path.file_stem().map_or_else(
+        || path.display().to_string(),
+        |s| s.to_string_lossy().into_owned(),
+    )
+}
+
 /// The `*.scene` files directly in `dir`, sorted; none if it is missing.
 pub(crate) fn scene_files(dir: &str) -> Vec<PathBuf> {
     let mut files: Vec<PathBuf> = std::fs::read_dir(dir)

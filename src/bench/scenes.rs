@@ -7,7 +7,7 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use super::{repeat, Stat};
+use super::{repeat, scene_name, Stat};
 use crate::bvh::Bvh;
 use crate::cpu::Precision;
 use crate::gpu::DeviceSelector;
@@ -102,10 +102,7 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
     let mut pipelines = Duration::ZERO;
     for path in &options.scenes {
         let scene = read_scene(path)?;
-        let name = path.file_stem().map_or_else(
-            || path.display().to_string(),
-            |s| s.to_string_lossy().into_owned(),
-        );
+        let name = scene_name(path);
         let bvh_stat = repeat(n, || {
             Bvh::build(&scene);
             Ok(())
@@ -121,11 +118,6 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
             cpu_f64: None,
             rays: None,
         };
-        let count = |t: &crate::timing::Timings| {
-            use crate::timing::{CLOSEST_RAYS, SHADOW_RAYS};
-            t.has_count(CLOSEST_RAYS)
-                .then(|| t.counted(CLOSEST_RAYS) + t.counted(SHADOW_RAYS))
-        };
         if let Some(r) = &gpu {
             pipelines += r.prepare_pipeline(&scene)?;
             let ready = r.prepare_scene(&scene);
@@ -134,7 +126,7 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
                 .extend(ready.timings.phase("pack").map(|d| ("GPU", d)));
             // One untimed render first: drivers compile lazily on first use.
             let first = r.render_prepared_scene(&scene, &ready, &|_, _| {})?;
-            result.rays = count(&first.timings).or(result.rays);
+            result.rays = first.timings.rays().or(result.rays);
             result.gpu = repeat(n, || {
                 r.render_prepared_scene(&scene, &ready, &|_, _| {})?;
                 Ok(())
@@ -153,7 +145,7 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
                 let mut rays = None;
                 *slot = repeat(n, || {
                     let out = r.render_prepared_scene(&scene, &ready, &|_, _| {})?;
-                    rays = count(&out.timings);
+                    rays = out.timings.rays();
                     Ok(())
                 })?;
                 result.rays = rays.or(result.rays);

@@ -74,10 +74,7 @@ pub fn run_specialize(
     for path in &options.scenes {
         let scene = read_scene(path)?.in_view_space().into_owned();
         let camera = Camera::with_fov(options.width, options.height, scene.fov());
-        let name = path.file_stem().map_or_else(
-            || path.display().to_string(),
-            |s| s.to_string_lossy().into_owned(),
-        );
+        let name = super::scene_name(path);
         let effects = Effects::resolve(&scene.settings);
         let features = Features::of(&scene, &effects);
         let packed = GpuScene::pack(&scene, &Bvh::for_render(&scene, &effects));

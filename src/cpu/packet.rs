@@ -145,6 +145,15 @@ struct Children {
     nearest: [f32; 4],
 }
 
+impl Children {
+    /// No ray in any box yet.
+    const NONE: Children = Children {
+        hits: [0; 4],
+        near: [Lanes([0.0; WIDTH]); 4],
+        nearest: [f32::INFINITY; 4],
+    };
+}
+
 /// `Children` with SSE (glam's `Vec4`), four rays at a time: each lane is
 /// `wide::hit_boxes_f32`'s arithmetic for its ray, operation for operation.
 #[inline(always)]
@@ -155,11 +164,7 @@ fn children_sse<const ANY_HIT: bool>(
     best_t: &Lanes,
 ) -> Children {
     let scale = Vec4::splat(f32::BOX_T_SCALE);
-    let mut out = Children {
-        hits: [0; 4],
-        near: [Lanes([0.0; WIDTH]); 4],
-        nearest: [f32::INFINITY; 4],
-    };
+    let mut out = Children::NONE;
     for lane in 0..4 {
         if node.child[lane] == wide::EMPTY {
             continue;
@@ -209,11 +214,7 @@ fn children_avx2<const ANY_HIT: bool>(
     best_t: &Lanes,
 ) -> Children {
     use std::arch::x86_64::*;
-    let mut out = Children {
-        hits: [0; 4],
-        near: [Lanes([0.0; WIDTH]); 4],
-        nearest: [f32::INFINITY; 4],
-    };
+    let mut out = Children::NONE;
     // SAFETY: `Lanes` is 32-byte aligned and holds `WIDTH` f32, a multiple of
     // eight, as the aligned loads and stores at every eighth one need; the
     // rest is arithmetic on registers.
@@ -509,10 +510,7 @@ fn traverse_with<const AVX2: bool, const ANY_HIT: bool>(
                 // `hit_leaf`'s loop over the primitives, robust, taken
                 // primitive by primitive for all the rays (each ray still
                 // meets them in order): spheres four rays at a time.
-                let span = scene.wide.spans[index];
-                let refs =
-                    &scene.prim_refs[span.first as usize..(span.first + span.count) as usize];
-                for &prim in refs {
+                for &prim in &scene.prim_refs[scene.wide.spans[index].range()] {
                     if rays_in == 0 {
                         break;
                     }

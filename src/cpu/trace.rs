@@ -556,9 +556,7 @@ pub(super) fn hit_leaf<R: Real>(
         }
         return false;
     }
-    let span = scene.wide.spans[leaf];
-    let (first, count) = (span.first as usize, span.count as usize);
-    for &prim in &scene.prim_refs[first..first + count] {
+    for &prim in &scene.prim_refs[scene.wide.spans[leaf].range()] {
         let index = (prim & !SPHERE_BIT) as usize;
         if any_hit && skip.contains(&prim) {
             // A surface through the light: triangles never block it, a

@@ -66,6 +66,14 @@ pub struct LeafSpan {
     pub count: u32,
 }
 
+impl LeafSpan {
+    /// The leaf's indices into `prim_refs`.
+    #[inline(always)]
+    pub fn range(self) -> std::ops::Range<usize> {
+        self.first as usize..(self.first + self.count) as usize
+    }
+}
+
 /// The collapsed tree: nodes (root first) and their leaves, each a block
 /// and a span at the same index.
 #[derive(Clone, Debug, Default)]
@@ -106,6 +114,14 @@ impl Node4 {
         child: [EMPTY; 4],
         leaves: [0; 4],
     };
+
+    /// The leaf blocks of this node's own leaf lanes, in lane order.
+    pub fn leaf_blocks(&self) -> impl Iterator<Item = usize> + '_ {
+        self.child
+            .iter()
+            .filter(|&&c| c != EMPTY && c & LEAF != 0)
+            .map(|&c| (c & !LEAF) as usize)
+    }
 
     /// The leaf blocks of the node in `lane` (a node child): their indices.
     #[inline(always)]
@@ -161,7 +177,7 @@ pub fn collapse(bvh: &Bvh, corners: impl Fn(u32) -> Option<[[f32; 3]; 3]>) -> Wi
         set_leaf_runs(&mut out.nodes);
     }
     for (leaf, span) in out.leaves.iter_mut().zip(&out.spans) {
-        let refs = &bvh.prim_refs[span.first as usize..(span.first + span.count) as usize];
+        let refs = &bvh.prim_refs[span.range()];
         if refs.len() > 4 {
             continue;
         }
@@ -194,12 +210,9 @@ fn set_leaf_runs(nodes: &mut [Node4]) {
             if child & LEAF != 0 {
                 continue;
             }
-            let blocks = nodes[child as usize]
-                .child
-                .iter()
-                .filter(|&&c| c != EMPTY && c & LEAF != 0)
-                .map(|&c| (c & !LEAF) as usize);
-            let (first, count) = blocks.fold((usize::MAX, 0), |(f, n), b| (f.min(b), n + 1));
+            let (first, count) = nodes[child as usize]
+                .leaf_blocks()
+                .fold((usize::MAX, 0), |(f, n), b| (f.min(b), n + 1));
             if count > 0 {
                 nodes[i].leaves[lane] = (first * RUN_LEN + count) as u32;
             }
@@ -449,8 +462,7 @@ pub(crate) mod tests {
                             let index = (c & !LEAF) as usize;
                             let (leaf, span) = (&wide.leaves[index], wide.spans[index]);
                             assert!(leaf.simd(), "triangles only");
-                            let refs = &bvh.prim_refs
-                                [span.first as usize..(span.first + span.count) as usize];
+                            let refs = &bvh.prim_refs[span.range()];
                             assert_eq!(&leaf.prims[..refs.len()], refs);
                             assert!(leaf.prims[refs.len()..].iter().all(|&p| p == NONE));
                             leaves.push((span.first, span.count, lo, hi));
@@ -459,12 +471,7 @@ pub(crate) mod tests {
                             // The child's lanes fit inside this lane's box.
                             let child = &wide.nodes[c as usize];
                             // Its leaf blocks are the run this lane names.
-                            let mut own: Vec<usize> = child
-                                .child
-                                .iter()
-                                .filter(|&&k| k != EMPTY && k & LEAF != 0)
-                                .map(|&k| (k & !LEAF) as usize)
-                                .collect();
+                            let mut own: Vec<usize> = child.leaf_blocks().collect();
                             own.sort_unstable();
                             assert_eq!(own, node.leaf_run(lane).collect::<Vec<_>>());
                             for l in 0..4 {
@@ -570,7 +577,7 @@ pub(crate) mod tests {
         };
         let mut hits = 0;
         for (leaf, span) in wide.leaves.iter().zip(&wide.spans) {
-            let refs = &bvh.prim_refs[span.first as usize..(span.first + span.count) as usize];
+            let refs = &bvh.prim_refs[span.range()];
             for _ in 0..20 {
                 // Rays from near the camera towards a point of the leaf's
                 // first triangle, so many hit, some on edges and corners.
