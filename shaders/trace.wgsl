@@ -698,62 +698,45 @@ fn hit_sphere_through_end(ray: Ray, s: Sphere) -> f32 {
     return T_INF;
 }
 
-// Tests the primitives of the leaf whose references start at `first` (the
-// last is marked LEAF_END); `any_hit` returns at the first hit in range.
-fn hit_leaf(ray: Ray, first: u32, best: ptr<function, Hit>, any_hit: bool) -> bool {
-    var i = first;
-    var last = false;
-    // The run ends at its marked reference; the list's end only bounds
-    // the loop for the compiler.
-    for (; !last && i < arrayLength(&prim_refs); i++) {
-        work += 1u;
-        let word = prim_refs[i];
-        last = (word & LEAF_END) != 0u;
-        let prim = word & ~LEAF_END;
-        let index = prim & ~SPHERE_BIT;
-        if (LIGHT_SKIPS) {
-            if (any_hit && skipped(prim)) {
-                // A surface through the light: triangles never block it, a
-                // sphere only with its other crossing.
-                if ((prim & SPHERE_BIT) != 0u) {
-                    let t = hit_sphere_through_end(ray, sphere_at(index, ray.time));
-                    if (t < (*best).t) {
-                        *best = Hit(t, prim, 0.0, 0.0);
-                        return true;
-                    }
-                }
-                continue;
-            }
-        }
-        if ((prim & SPHERE_BIT) != 0u) {
-            if (SPHERES) {
-                let s = sphere_at(index, ray.time);
-                var band = 0.0;
-                if (LIGHT_SKIPS) {
-                    band = select(0.0, graze_band(graze_h, s.radius), any_hit);
-                }
-                let t = hit_sphere(ray, s, (*best).t, band);
+// Tests the primitive `prim` (a reference without its LEAF_END bit); true
+// when `any_hit` and it blocks, so the traversal can stop.
+fn hit_prim(ray: Ray, prim: u32, best: ptr<function, Hit>, any_hit: bool) -> bool {
+    let index = prim & ~SPHERE_BIT;
+    if (LIGHT_SKIPS) {
+        if (any_hit && skipped(prim)) {
+            // A surface through the light: triangles never block it, a
+            // sphere only with its other crossing.
+            if ((prim & SPHERE_BIT) != 0u) {
+                let t = hit_sphere_through_end(ray, sphere_at(index, ray.time));
                 if (t < (*best).t) {
                     *best = Hit(t, prim, 0.0, 0.0);
-                    if (any_hit) {
-                        return true;
-                    }
+                    return true;
                 }
             }
-        } else {
-            if (TRIANGLES) {
-                let h = hit_triangle(ray, triangle_at(index, ray.time), (*best).t);
-                if (h.x < (*best).t) {
-                    *best = Hit(h.x, prim, h.y, h.z);
-                    if (any_hit) {
-                        return true;
-                    }
-                }
-            }
+            return false;
         }
     }
-    if (!last) {
-        cut = true;
+    if ((prim & SPHERE_BIT) != 0u) {
+        if (SPHERES) {
+            let s = sphere_at(index, ray.time);
+            var band = 0.0;
+            if (LIGHT_SKIPS) {
+                band = select(0.0, graze_band(graze_h, s.radius), any_hit);
+            }
+            let t = hit_sphere(ray, s, (*best).t, band);
+            if (t < (*best).t) {
+                *best = Hit(t, prim, 0.0, 0.0);
+                return any_hit;
+            }
+        }
+    } else {
+        if (TRIANGLES) {
+            let h = hit_triangle(ray, triangle_at(index, ray.time), (*best).t);
+            if (h.x < (*best).t) {
+                *best = Hit(h.x, prim, h.y, h.z);
+                return any_hit;
+            }
+        }
     }
     return false;
 }
@@ -871,14 +854,27 @@ fn traverse(ray: Ray, t_max: f32, any_hit: bool) -> Hit {
         append_hit(&leaves, &kl, b, WIDE_LEAF);
         append_hit(&leaves, &kl, c, WIDE_LEAF);
         append_hit(&leaves, &kl, d, WIDE_LEAF);
-        var i = 0u;
-        for (; i < kl; i++) {
+        // One loop over all their primitives, leaf after leaf (each run ends
+        // at its LEAF_END): a lane steps through its own run, instead of
+        // every lane waiting out the most leaves and then the longest leaf
+        // in two nested loops (4-10% faster on Mesa 22.3, whose loops run
+        // their body once even when no lane enters; level on Mesa 25).
+        var li = 0u;
+        var r = leaves.x & ~WIDE_LEAF;
+        for (; li < kl && r < arrayLength(&prim_refs);) {
             work += 1u;
-            if (hit_leaf(ray, leaves[i] & ~WIDE_LEAF, &best, any_hit)) {
+            let word = prim_refs[r];
+            if (hit_prim(ray, word & ~LEAF_END, &best, any_hit)) {
                 return best;
             }
+            if ((word & LEAF_END) != 0u) {
+                li += 1u;
+                r = leaves[min(li, 3u)] & ~WIDE_LEAF;
+            } else {
+                r += 1u;
+            }
         }
-        if (i < kl) {
+        if (li < kl) {
             cut = true;
         }
         // The hit inner nodes, farthest first: the nearest is visited next,
