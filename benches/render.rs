@@ -21,6 +21,7 @@ fn main() {
         cpu_f32: true,
         cpu_f64: true,
         device: None,
+        uniform_lists: true,
     };
     let report = run(&options, &mut |line| eprintln!("{line}")).expect("benchmark runs");
     println!("{}", report.to_markdown());

@@ -17,12 +17,22 @@
 //  12  storage, read      array<Material>          the distinct triangle-corner materials
 //  13  storage, read      array<u32>               light skips: surfaces through point lights
 //  14.. storage, read     chunks 1-3 of triangles, normals, materials, nodes (SPLIT only)
+//  26-28 uniform          spheres, triangles, nodes again, fixed length (UNIFORM_LISTS only)
 //
 // Split lists. A list larger than one binding may hold (maxStorageBufferRange)
 // is bound as up to SPLIT_CHUNKS consecutive ranges of 2^frame.chunk_shift[j]
 // elements each, and read through load_triangle, load_normals, load_material
 // and load_node. Only a shader built with SPLIT reads the extra chunks; every
 // other one reads binding 0 of each list directly.
+//
+// Uniform lists. On a CPU device (llvmpipe) a storage load is a loop over the
+// eight lanes, each with a test of its mask and of the binding's size, a
+// scalar load and a blend; a uniform load is a branch-free gather with the
+// index clamped. The lists a traversal reads most (spheres, triangles, nodes)
+// are therefore also bound as uniform buffers of UNIFORM_LIST_BYTES each
+// where they fit, and a shader built with UNIFORM_LISTS reads those instead
+// (src/gpu/render.rs: choose_lists). GPUs keep the storage lists: their
+// uniform (constant) caches serialise lanes that read different addresses.
 //
 // Bounded work. render_tile does not render a pixel in one go: it runs the
 // pixel's work (samples, bounces, one light term or one area-light sample at
@@ -201,6 +211,10 @@ struct WideNode {
 @group(0) @binding(23) var<storage, read> nodes1: array<WideNode>;
 @group(0) @binding(24) var<storage, read> nodes2: array<WideNode>;
 @group(0) @binding(25) var<storage, read> nodes3: array<WideNode>;
+// See "Uniform lists" above; lengths are src/layout.rs's uniform_list_len.
+@group(0) @binding(26) var<uniform> spheres_u: array<Sphere, 1365>;
+@group(0) @binding(27) var<uniform> triangles_u: array<Triangle, 1365>;
+@group(0) @binding(28) var<uniform> nodes_u: array<WideNode, 1024>;
 
 // Loop iterations this invocation has run (every loop counts, as drivers
 // count them), and whether any of its loops ended without its own exit.
@@ -268,6 +282,9 @@ override SPLIT: bool = false;
 // Some point light lies on a surface: shadow rays towards it treat the
 // surfaces through it by the rule of src/lights_on_surfaces.rs.
 override LIGHT_SKIPS: bool = false;
+// Spheres, triangles and nodes are read from their uniform copies (see
+// "Uniform lists" above).
+override UNIFORM_LISTS: bool = false;
 const TANGENT_BAND: f32 = 0.000244140625;
 const ON_SURFACE: f32 = 0.00000095367431640625;
 const SPLIT_CHUNKS: u32 = 4u;
@@ -552,7 +569,12 @@ fn hit_triangle(ray: Ray, tri: Triangle, t_max: f32) -> vec3<f32> {
 
 // Sphere `index` where it is `time` seconds after the frame's time.
 fn sphere_at(index: u32, time: f32) -> Sphere {
-    var s = spheres[index];
+    var s: Sphere;
+    if (UNIFORM_LISTS) {
+        s = spheres_u[index];
+    } else {
+        s = spheres[index];
+    }
     if (MOTION_BLUR) {
         s.center += velocities[index].xyz * time;
     }
@@ -560,19 +582,24 @@ fn sphere_at(index: u32, time: f32) -> Sphere {
 }
 
 // The split-list readers: element `i` of a list, from the chunk that holds
-// it (a shader without SPLIT reads the first binding only).
+// it (a shader without SPLIT reads the first binding only), or from its
+// uniform copy (UNIFORM_LISTS).
 fn load_triangle(i: u32) -> Triangle {
-    if (SPLIT) {
-        let shift = frame.chunk_shift.x;
-        let j = i & ((1u << shift) - 1u);
-        switch (i >> shift) {
-            case 0u: { return triangles[j]; }
-            case 1u: { return triangles1[j]; }
-            case 2u: { return triangles2[j]; }
-            default: { return triangles3[j]; }
+    if (UNIFORM_LISTS) {
+        return triangles_u[i];
+    } else {
+        if (SPLIT) {
+            let shift = frame.chunk_shift.x;
+            let j = i & ((1u << shift) - 1u);
+            switch (i >> shift) {
+                case 0u: { return triangles[j]; }
+                case 1u: { return triangles1[j]; }
+                case 2u: { return triangles2[j]; }
+                default: { return triangles3[j]; }
+            }
         }
+        return triangles[i];
     }
-    return triangles[i];
 }
 
 fn load_normals(i: u32) -> TriangleNormals {
@@ -604,17 +631,21 @@ fn load_material(i: u32) -> Material {
 }
 
 fn load_node(i: u32) -> WideNode {
-    if (SPLIT) {
-        let shift = frame.chunk_shift.w;
-        let j = i & ((1u << shift) - 1u);
-        switch (i >> shift) {
-            case 0u: { return nodes[j]; }
-            case 1u: { return nodes1[j]; }
-            case 2u: { return nodes2[j]; }
-            default: { return nodes3[j]; }
+    if (UNIFORM_LISTS) {
+        return nodes_u[i];
+    } else {
+        if (SPLIT) {
+            let shift = frame.chunk_shift.w;
+            let j = i & ((1u << shift) - 1u);
+            switch (i >> shift) {
+                case 0u: { return nodes[j]; }
+                case 1u: { return nodes1[j]; }
+                case 2u: { return nodes2[j]; }
+                default: { return nodes3[j]; }
+            }
         }
+        return nodes[i];
     }
-    return nodes[i];
 }
 
 fn triangle_at(index: u32, time: f32) -> Triangle {

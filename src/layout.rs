@@ -188,6 +188,28 @@ pub const SPLIT_CHUNKS: usize = 4;
 /// The first binding of the extra chunks.
 pub const SPLIT_FIRST: usize = 14;
 
+/// Lists a shader with uniform lists reads from uniform buffers instead of
+/// their storage bindings: (storage binding, name), the uniform copy of list
+/// j at binding `UNIFORM_FIRST + j` (see "Uniform lists" in
+/// shaders/trace.wgsl).
+pub const UNIFORM_LISTS: [(usize, &str); 3] = [(2, "spheres"), (3, "triangles"), (6, "bvh nodes")];
+/// The first binding of the uniform copies.
+pub const UNIFORM_FIRST: usize = 26;
+/// Bytes of each uniform copy: its fixed-length array in the shader
+/// (elements: this over the element's size, rounded down). Four times
+/// Vulkan's guaranteed `maxUniformBufferRange`; lavapipe offers it.
+pub const UNIFORM_LIST_BYTES: u64 = 65536;
+
+/// Elements of list j of `UNIFORM_LISTS` that its uniform copy holds.
+pub const fn uniform_list_len(j: usize) -> u64 {
+    let stride = match j {
+        0 => std::mem::size_of::<GpuSphere>(),
+        1 => std::mem::size_of::<GpuTriangle>(),
+        _ => std::mem::size_of::<GpuWideNode>(),
+    };
+    UNIFORM_LIST_BYTES / stride as u64
+}
+
 /// `GpuLight::kind` values.
 pub const LIGHT_POINT: u32 = 0;
 pub const LIGHT_SPHERE: u32 = 1;

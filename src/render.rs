@@ -342,8 +342,10 @@ impl Renderer {
     pub fn prepare_pipeline(&self, scene: &Scene) -> Result<Duration, Error> {
         match &self.engine {
             Engine::Gpu { renderer, .. } => {
-                let p = self.prepare(&scene.in_view_space(), &mut Timings::default());
-                Ok(renderer.prepare(&self.gpu_options(&p), crate::gpu::Kernel::Render)?)
+                let scene = scene.in_view_space();
+                let p = self.prepare(&scene, &mut Timings::default());
+                let packed = GpuScene::pack(&scene, &p.bvh);
+                Ok(renderer.prepare(&packed, &self.gpu_options(&p), crate::gpu::Kernel::Render)?)
             }
             Engine::Cpu(_) => Ok(Duration::ZERO),
         }

@@ -418,10 +418,20 @@ fn pipelines_are_cached_by_feature_set() {
         multisample: true,
         ..Features::default()
     });
-    let first = gpu.renderer.prepare(&a, Kernel::Render).expect("build");
+    let scene = glint::layout::GpuScene::pack(&Scene::default(), &glint::bvh::Bvh::default());
+    let first = gpu
+        .renderer
+        .prepare(&scene, &a, Kernel::Render)
+        .expect("build");
     assert!(!first.is_zero(), "first use builds");
-    let again = gpu.renderer.prepare(&a, Kernel::Render).expect("cached");
+    let again = gpu
+        .renderer
+        .prepare(&scene, &a, Kernel::Render)
+        .expect("cached");
     assert!(again.is_zero(), "second use is cached");
-    let other = gpu.renderer.prepare(&b, Kernel::Render).expect("build");
+    let other = gpu
+        .renderer
+        .prepare(&scene, &b, Kernel::Render)
+        .expect("build");
     assert!(!other.is_zero(), "another feature set builds its own");
 }

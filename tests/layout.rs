@@ -7,7 +7,7 @@ use std::mem::{offset_of, size_of};
 use ash::vk;
 use glint::cpu::Real;
 use glint::layout::*;
-use naga::{AddressSpace, Expression, Literal, Module, TypeInner};
+use naga::{AddressSpace, ArraySize, Expression, Literal, Module, TypeInner};
 
 fn shader() -> Module {
     let path = concat!(env!("CARGO_MANIFEST_DIR"), "/shaders/trace.wgsl");
@@ -134,6 +134,11 @@ fn bindings_match_the_pipeline_and_array_strides_match_rust() {
         (12, size_of::<GpuMaterial>()),
         (13, size_of::<u32>()),
     ];
+    // A uniform copy holds what its storage list holds.
+    for (j, &(list, _)) in UNIFORM_LISTS.iter().enumerate() {
+        let stride = strides.iter().find(|s| s.0 == list).expect("listed").1;
+        strides.push((UNIFORM_FIRST + j, stride));
+    }
     // A split list's extra chunks hold what its first binding holds.
     for (j, &(first, _)) in SPLIT_LISTS.iter().enumerate() {
         let stride = strides.iter().find(|s| s.0 == first).expect("listed").1;
@@ -155,8 +160,19 @@ fn bindings_match_the_pipeline_and_array_strides_match_rust() {
             other => panic!("unexpected address space {other:?}"),
         };
         assert_eq!(glint::gpu::BINDINGS[i], expected, "binding {i}");
-        if let TypeInner::Array { stride, base, .. } = m.types[var.ty].inner {
+        if let TypeInner::Array { stride, base, size } = m.types[var.ty].inner {
             element.push((i, base));
+            // A uniform copy's fixed length is the one the host pads it to.
+            if let Some(j) = i.checked_sub(UNIFORM_FIRST) {
+                let ArraySize::Constant(len) = size else {
+                    panic!("binding {i} is a uniform copy: a fixed-length array");
+                };
+                assert_eq!(
+                    u64::from(len.get()),
+                    uniform_list_len(j),
+                    "length of binding {i}"
+                );
+            }
             let want = strides
                 .iter()
                 .find(|s| s.0 == i)
@@ -169,6 +185,14 @@ fn bindings_match_the_pipeline_and_array_strides_match_rust() {
     seen.sort();
     assert_eq!(seen, (0..glint::gpu::BINDINGS.len()).collect::<Vec<_>>());
     let element_of = |b: usize| element.iter().find(|e| e.0 == b).expect("an array").1;
+    for (j, &(list, name)) in UNIFORM_LISTS.iter().enumerate() {
+        let copy = UNIFORM_FIRST + j;
+        assert_eq!(
+            element_of(copy),
+            element_of(list),
+            "binding {copy} copies {name}"
+        );
+    }
     for (j, &(first, name)) in SPLIT_LISTS.iter().enumerate() {
         for k in 1..SPLIT_CHUNKS {
             let chunk = SPLIT_FIRST + (SPLIT_CHUNKS - 1) * j + k - 1;

@@ -271,6 +271,42 @@ fn bowl(n: usize) -> Scene {
     glint::scene::parse_scene(text.as_bytes(), "bowl.scene").expect("bowl parses")
 }
 
+/// On a CPU device, spheres, triangles and nodes that fit their uniform
+/// copies are read from those ("Uniform lists" in the shader), and the image
+/// is the storage lists' bit for bit; lists too big for a copy, and GPUs,
+/// keep the storage lists.
+#[test]
+fn uniform_lists_render_the_storage_lists_image() {
+    // 800 triangles fit a copy (1,365 of 48 bytes); 3,200 do not.
+    let small = bowl(20);
+    let Some(uniform) = render_passes(&small, 32, 24, |o| o.tile_size = 16) else {
+        return;
+    };
+    let (uniform, t_uniform) = uniform.expect("render with uniform lists");
+    let (storage, t_storage) = render_passes(&small, 32, 24, |o| {
+        o.tile_size = 16;
+        o.uniform_lists = false;
+    })
+    .expect("device")
+    .expect("render with storage lists");
+    let cpu = gpu()
+        .expect("device")
+        .lock()
+        .unwrap_or_else(|e| e.into_inner())
+        .ctx
+        .limits()
+        .cpu;
+    assert_eq!(t_uniform.counted("uniform lists"), u64::from(cpu));
+    assert_eq!(t_storage.counted("uniform lists"), 0);
+    for (i, (a, b)) in uniform.pixels.iter().zip(&storage.pixels).enumerate() {
+        assert_eq!(a.map(f32::to_bits), b.map(f32::to_bits), "pixel {i}");
+    }
+    let (_, t_big) = render_passes(&bowl(40), 8, 6, |o| o.tile_size = 16)
+        .expect("device")
+        .expect("render of 3,200 triangles");
+    assert_eq!(t_big.counted("uniform lists"), 0);
+}
+
 /// Lists larger than one binding are split over several, and the image is
 /// the same bit for bit; past what the split bindings hold, the render is
 /// refused before any work.

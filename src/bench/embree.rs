@@ -15,7 +15,7 @@ use std::time::Duration;
 
 use super::{repeat, scene_name, Stat};
 use crate::cpu::Precision;
-use crate::gpu::DeviceSelector;
+use crate::gpu::{DeviceSelector, GpuRenderOptions};
 use crate::render::{Backend, RenderOptions, Renderer};
 use crate::scene::read_scene;
 use crate::Error;
@@ -34,6 +34,8 @@ pub struct EmbreeOptions {
     pub gpu: bool,
     pub cpu: bool,
     pub device: Option<DeviceSelector>,
+    /// `GpuRenderOptions::uniform_lists`.
+    pub uniform_lists: bool,
 }
 
 /// The harness's two traversal modes.
@@ -172,6 +174,10 @@ pub fn run_embree(
         width: options.width,
         height: options.height,
         device: options.device.clone(),
+        gpu: GpuRenderOptions {
+            uniform_lists: options.uniform_lists,
+            ..GpuRenderOptions::default()
+        },
         ..RenderOptions::default()
     };
     let gpu = options

@@ -10,7 +10,7 @@ use std::time::{Duration, Instant};
 use super::{repeat, scene_name, Stat};
 use crate::bvh::Bvh;
 use crate::cpu::Precision;
-use crate::gpu::DeviceSelector;
+use crate::gpu::{DeviceSelector, GpuRenderOptions};
 use crate::render::{Backend, RenderOptions, Renderer};
 use crate::scene::read_scene;
 use crate::Error;
@@ -25,6 +25,8 @@ pub struct BenchOptions {
     pub cpu_f32: bool,
     pub cpu_f64: bool,
     pub device: Option<DeviceSelector>,
+    /// `GpuRenderOptions::uniform_lists`.
+    pub uniform_lists: bool,
 }
 
 #[derive(Clone, Debug)]
@@ -65,6 +67,10 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
         width: options.width,
         height: options.height,
         device: options.device.clone(),
+        gpu: GpuRenderOptions {
+            uniform_lists: options.uniform_lists,
+            ..GpuRenderOptions::default()
+        },
         ..RenderOptions::default()
     };
     let mut report = BenchReport {

@@ -80,6 +80,10 @@ pub struct Timed {
     /// Vulkan device by index or name (see `glint devices`).
     #[arg(long)]
     device: Option<String>,
+    /// GPU: read spheres, triangles and nodes from storage buffers even on
+    /// a CPU device (the shader a GPU runs), not from uniform copies.
+    #[arg(long)]
+    storage_lists: bool,
 }
 
 impl Timed {
@@ -253,6 +257,7 @@ fn run_embree(args: EmbreeArgs) -> anyhow::Result<ExitCode> {
         gpu: !args.timed.no_gpu,
         cpu: !args.timed.no_cpu,
         device: args.timed.device(),
+        uniform_lists: !args.timed.storage_lists,
     };
     let report = glint::bench::run_embree(&options, &mut |line| eprintln!("{line}"))?;
     println!("{}", report.to_markdown());
@@ -271,6 +276,7 @@ fn run_scenes(args: SceneArgs) -> anyhow::Result<ExitCode> {
         cpu_f32: !args.timed.no_cpu,
         cpu_f64: !args.timed.no_cpu && args.f64,
         device: args.timed.device(),
+        uniform_lists: !args.timed.storage_lists,
     };
     if let Some(plot) = &args.plot {
         // Before the work, not after it: a bad path fails in a second.

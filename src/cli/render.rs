@@ -143,6 +143,11 @@ pub struct RenderArgs {
     /// settings) instead of one specialised for the scene; for comparisons.
     #[arg(long)]
     generic_shader: bool,
+    /// GPU: read spheres, triangles and nodes from storage buffers even on
+    /// a CPU device (the shader a GPU runs), not from uniform copies; for
+    /// comparisons.
+    #[arg(long)]
+    storage_lists: bool,
     /// Render in passes of the scene's samples per pixel (each with its own
     /// seed) until the estimated RMSE of the image (linear values, 0-1,
     /// from the difference of the even and odd passes) is at most E. Exit 1
@@ -347,6 +352,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
             tile_size: args.tile,
             pass_budget: args.pass_budget,
             pass_timeout: Duration::from_secs_f64(args.pass_timeout),
+            uniform_lists: !args.storage_lists,
             ..Default::default()
         },
     };

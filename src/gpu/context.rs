@@ -92,6 +92,11 @@ pub struct DeviceLimits {
     pub max_group_count: [u32; 3],
     /// `maxPerStageDescriptorStorageBuffers`.
     pub max_storage_buffers: u32,
+    /// `maxPerStageDescriptorUniformBuffers`.
+    pub max_uniform_buffers: u32,
+    /// The device is a CPU (`VK_PHYSICAL_DEVICE_TYPE_CPU`: lavapipe,
+    /// SwiftShader), which reads uniform buffers faster than storage ones.
+    pub cpu: bool,
     /// `minStorageBufferOffsetAlignment`: where a split list's chunks may start.
     pub storage_offset_alignment: u64,
     /// `timestampPeriod`: nanoseconds a timestamp tick lasts.
@@ -119,6 +124,8 @@ fn limits_of(inst: &ash::Instance, pd: vk::PhysicalDevice, queue_family: u32) ->
         max_allocation,
         max_group_count: l.max_compute_work_group_count,
         max_storage_buffers: l.max_per_stage_descriptor_storage_buffers,
+        max_uniform_buffers: l.max_per_stage_descriptor_uniform_buffers,
+        cpu: props.device_type == vk::PhysicalDeviceType::CPU,
         storage_offset_alignment: l.min_storage_buffer_offset_alignment.max(1),
         timestamp_period: l.timestamp_period,
         // SAFETY: a plain query on a physical device of this instance.

@@ -1,8 +1,9 @@
-//! The trace compute pipelines: two descriptor set layouts (bindings as
-//! listed in the shader's header: the plain one, and one with the extra
-//! chunks of split lists) with their pipeline layouts, and a pipeline per
-//! (methods, feature set, split, entry point), its SPIR-V specialised by
-//! `shader`, built on first use and kept for the renderer's lifetime.
+//! The trace compute pipelines: three descriptor set layouts (bindings as
+//! listed in the shader's header: the plain one, one with the extra chunks
+//! of split lists, one with the uniform copies of the hot lists) with their
+//! pipeline layouts, and a pipeline per (methods, feature set, lists, entry
+//! point), its SPIR-V specialised by `shader`, built on first use and kept
+//! for the renderer's lifetime.
 
 use std::collections::HashMap;
 use std::ffi::CStr;
@@ -14,6 +15,7 @@ use ash::vk;
 use super::context::{Context, Shared};
 use super::error::{GpuError, VkResultExt};
 use crate::info::Features;
+use crate::layout::UNIFORM_FIRST;
 use crate::methods::Methods;
 
 /// The shader's entry points.
@@ -42,17 +44,50 @@ impl Kernel {
 pub struct PipelineKey {
     pub methods: Methods,
     pub features: Features,
-    /// Big lists span several bindings: the layout with all of `BINDINGS`.
-    pub split: bool,
+    /// How the scene's lists are bound.
+    pub lists: Lists,
     /// Some light lies on a surface (`lights_on_surfaces`): the shader that
     /// reads the skip lists.
     pub light_skips: bool,
     pub kernel: Kernel,
 }
 
-/// Descriptor types of bindings 0.. of group 0, in the shader's order; the
-/// plain layout has the first `PLAIN_BINDINGS`, the split one all of them.
-pub const BINDINGS: [vk::DescriptorType; 26] = [
+/// How a render binds the scene's lists: the descriptor set layout, and
+/// the shader variant that reads it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum Lists {
+    /// One storage binding per list: the first `PLAIN_BINDINGS`.
+    Plain,
+    /// Big lists span several bindings (`layout::SPLIT_LISTS`): the plain
+    /// bindings and the extra chunks.
+    Split,
+    /// The plain bindings, and uniform copies of spheres, triangles and
+    /// nodes (`layout::UNIFORM_LISTS`), which the shader reads instead.
+    Uniform,
+}
+
+impl Lists {
+    pub const ALL: [Lists; 3] = [Lists::Plain, Lists::Split, Lists::Uniform];
+
+    /// The layout's bindings, in order.
+    pub fn bindings(self) -> impl Iterator<Item = usize> + Clone {
+        let extra = match self {
+            Lists::Plain => 0..0,
+            Lists::Split => PLAIN_BINDINGS..UNIFORM_FIRST,
+            Lists::Uniform => UNIFORM_FIRST..BINDINGS.len(),
+        };
+        (0..PLAIN_BINDINGS).chain(extra)
+    }
+
+    /// Its place in `Lists::ALL` (and in each slot's descriptor sets).
+    pub fn index(self) -> usize {
+        self as usize
+    }
+}
+
+/// Descriptor types of bindings 0.. of group 0, in the shader's order; each
+/// layout has those `Lists::bindings` names.
+pub const BINDINGS: [vk::DescriptorType; 29] = [
     vk::DescriptorType::UNIFORM_BUFFER, // frame
     vk::DescriptorType::UNIFORM_BUFFER, // tile
     vk::DescriptorType::STORAGE_BUFFER, // spheres
@@ -81,18 +116,13 @@ pub const BINDINGS: [vk::DescriptorType; 26] = [
     vk::DescriptorType::STORAGE_BUFFER,
     vk::DescriptorType::STORAGE_BUFFER,
     vk::DescriptorType::STORAGE_BUFFER,
+    // Uniform copies of spheres, triangles and nodes (layout::UNIFORM_LISTS).
+    vk::DescriptorType::UNIFORM_BUFFER,
+    vk::DescriptorType::UNIFORM_BUFFER,
+    vk::DescriptorType::UNIFORM_BUFFER,
 ];
 /// Bindings of the plain layout (no split lists).
 pub const PLAIN_BINDINGS: usize = 14;
-
-/// The bindings of the plain (`split` false) or split layout.
-pub fn bindings(split: bool) -> &'static [vk::DescriptorType] {
-    if split {
-        &BINDINGS
-    } else {
-        &BINDINGS[..PLAIN_BINDINGS]
-    }
-}
 
 /// A descriptor set layout and the pipeline layout over it.
 #[derive(Clone, Copy)]
@@ -103,8 +133,8 @@ pub(crate) struct Layout {
 
 pub struct TracePipeline {
     shared: Arc<Shared>,
-    /// Plain, then split.
-    layouts: [Layout; 2],
+    /// One per `Lists::ALL`.
+    layouts: [Layout; 3],
     pipelines: Mutex<HashMap<PipelineKey, vk::Pipeline>>,
 }
 
@@ -120,22 +150,21 @@ impl TracePipeline {
         // was created before a failure.
         let mut p = TracePipeline {
             shared: shared.clone(),
-            layouts: [null; 2],
+            layouts: [null; 3],
             pipelines: Mutex::new(HashMap::new()),
         };
-        for split in [false, true] {
-            let bindings: Vec<_> = bindings(split)
-                .iter()
-                .enumerate()
-                .map(|(i, &ty)| {
+        for lists in Lists::ALL {
+            let bindings: Vec<_> = lists
+                .bindings()
+                .map(|i| {
                     vk::DescriptorSetLayoutBinding::default()
                         .binding(i as u32)
-                        .descriptor_type(ty)
+                        .descriptor_type(BINDINGS[i])
                         .descriptor_count(1)
                         .stage_flags(vk::ShaderStageFlags::COMPUTE)
                 })
                 .collect();
-            let layout = &mut p.layouts[usize::from(split)];
+            let layout = &mut p.layouts[lists.index()];
             // SAFETY: valid create infos on a live device; handles are owned
             // by `p`.
             unsafe {
@@ -159,9 +188,8 @@ impl TracePipeline {
         Ok(p)
     }
 
-    /// The plain (`split` false) or split layout.
-    pub(crate) fn layout(&self, split: bool) -> Layout {
-        self.layouts[usize::from(split)]
+    pub(crate) fn layout(&self, lists: Lists) -> Layout {
+        self.layouts[lists.index()]
     }
 
     /// How long building `key`'s pipeline takes from scratch (specialising
@@ -192,7 +220,8 @@ impl TracePipeline {
 
     fn build(&self, key: PipelineKey) -> Result<vk::Pipeline, GpuError> {
         let variant = super::shader::Variant {
-            split: key.split,
+            split: key.lists == Lists::Split,
+            uniform_lists: key.lists == Lists::Uniform,
             light_skips: key.light_skips,
         };
         let words = super::shader::spirv(key.methods, key.features, variant)?;
@@ -209,7 +238,7 @@ impl TracePipeline {
                 .name(key.kernel.entry_point());
             let info = vk::ComputePipelineCreateInfo::default()
                 .stage(stage)
-                .layout(self.layout(key.split).pipeline);
+                .layout(self.layout(key.lists).pipeline);
             let created = device.create_compute_pipelines(vk::PipelineCache::null(), &[info], None);
             device.destroy_shader_module(module, None);
             created

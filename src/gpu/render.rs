@@ -27,25 +27,25 @@ use super::buffer::Buffer;
 use super::context::DeviceLimits;
 use super::context::{Context, Shared};
 use super::error::{GpuError, VkResultExt};
-use super::pipeline::{bindings, Kernel, PipelineKey, TracePipeline, BINDINGS};
+use super::pipeline::{Kernel, Lists, PipelineKey, TracePipeline, BINDINGS};
 use crate::camera::Camera;
 use crate::framebuffer::Framebuffer;
 use crate::info::Features;
 use crate::layout::{
     padded, GpuMaterial, GpuPixelState, GpuScene, GpuStatus, GpuTile, GpuTriangle,
     GpuTriangleNormals, GpuWideNode, PATH_HEADER, PATH_PER_LIGHT, SPLIT_CHUNKS, SPLIT_FIRST,
-    SPLIT_LISTS, WORKGROUP_SIZE,
+    SPLIT_LISTS, UNIFORM_FIRST, UNIFORM_LISTS, UNIFORM_LIST_BYTES, WORKGROUP_SIZE,
 };
 use crate::methods::Methods;
 use crate::probe::{PathRecord, ProbeImage};
 use crate::scene::Effects;
 use crate::timing::{Timings, CLOSEST_RAYS, GPU_TIME_NS, SHADOW_RAYS};
 
-fn key(options: &GpuRenderOptions, kernel: Kernel, split: bool, light_skips: bool) -> PipelineKey {
+fn key(options: &GpuRenderOptions, kernel: Kernel, lists: Lists, light_skips: bool) -> PipelineKey {
     PipelineKey {
         methods: options.methods,
         features: options.features,
-        split,
+        lists,
         light_skips,
         kernel,
     }
@@ -190,6 +190,10 @@ pub struct GpuRenderOptions {
     /// A cap on every storage binding below the device's own
     /// `maxStorageBufferRange` (tests use it to reach the limit cheaply).
     pub storage_limit: Option<u64>,
+    /// Where the device is a CPU and the lists fit, read spheres, triangles
+    /// and nodes from uniform copies (`Lists::Uniform`); false: always the
+    /// storage lists, as on a GPU.
+    pub uniform_lists: bool,
 }
 
 impl Default for GpuRenderOptions {
@@ -210,6 +214,7 @@ impl Default for GpuRenderOptions {
             effects: Effects::default(),
             features: Features::ALL,
             storage_limit: None,
+            uniform_lists: true,
         }
     }
 }
@@ -337,7 +342,8 @@ struct Slot {
     command: vk::CommandBuffer,
     fence: vk::Fence,
     /// A set of the plain layout, then one of the split layout.
-    sets: [vk::DescriptorSet; 2],
+    /// One per `Lists::ALL`.
+    sets: [vk::DescriptorSet; 3],
     /// Its two timestamps in `Pools::queries` (null pool: none).
     queries: vk::QueryPool,
     first_query: u32,
@@ -373,24 +379,53 @@ impl GpuRenderer {
         })
     }
 
-    /// Time to build the pipeline `options` call for from scratch (no cache).
+    /// Time to build the pipeline `options` call for from scratch (no
+    /// cache), with the plain lists.
     pub fn measure_build(
         &self,
         options: &GpuRenderOptions,
         kernel: Kernel,
     ) -> Result<Duration, GpuError> {
         self.pipeline
-            .measure_build(key(options, kernel, false, false))
+            .measure_build(key(options, kernel, Lists::Plain, false))
     }
 
-    /// Builds (or finds in the cache) the pipeline `options` call for;
-    /// returns the build time, zero when it was cached.
+    /// Builds (or finds in the cache) the pipeline a render of `scene` with
+    /// `options` uses; returns the build time, zero when it was cached.
     pub fn prepare(
         &self,
+        scene: &GpuScene,
         options: &GpuRenderOptions,
         kernel: Kernel,
     ) -> Result<Duration, GpuError> {
-        Ok(self.pipeline.get(key(options, kernel, false, false))?.1)
+        let mut limits = self.ctx.shared.limits;
+        if let Some(cap) = options.storage_limit {
+            limits.max_storage_range = limits.max_storage_range.min(cap);
+        }
+        let split_lens = [
+            padded(&scene.triangles).len(),
+            padded(&scene.normals).len(),
+            padded(&scene.materials).len(),
+            padded(&scene.nodes).len(),
+        ];
+        // A plan that fails fails the render too, which then says why.
+        let split = Split::plan(split_lens.map(|l| l as u64), &limits).is_ok_and(|s| s.split);
+        let lens = [
+            padded(&scene.spheres).len(),
+            padded(&scene.triangles).len(),
+            padded(&scene.nodes).len(),
+        ];
+        let lists = choose_lists(
+            split,
+            lens.map(|l| l as u64),
+            &limits,
+            options.uniform_lists,
+        );
+        let light_skips = !scene.skips.is_empty();
+        Ok(self
+            .pipeline
+            .get(key(options, kernel, lists, light_skips))?
+            .1)
     }
 
     /// Renders `scene` as seen by `camera`. `progress(pixels_done,
@@ -526,14 +561,15 @@ impl GpuRenderer {
     }
 
     /// The bytes each binding of a render would hold, checked against the
-    /// device's limits before anything is allocated, and how the big lists
-    /// are split over bindings to fit.
+    /// device's limits before anything is allocated; how the big lists are
+    /// split over bindings to fit, and how the lists are bound.
     fn check_limits(
         &self,
         uploads: &[Upload],
         slot_bytes: &[(usize, u64)],
         storage_limit: Option<u64>,
-    ) -> Result<Split, GpuError> {
+        uniform_lists: bool,
+    ) -> Result<(Split, Lists), GpuError> {
         let mut limits = self.ctx.shared.limits;
         if let Some(cap) = storage_limit {
             limits.max_storage_range = limits.max_storage_range.min(cap);
@@ -545,9 +581,15 @@ impl GpuRenderer {
                 .map_or(0, |u| u.bytes.len() as u64)
         };
         let split = Split::plan(SPLIT_LISTS.map(|(b, _)| len_of(b)), &limits)?;
-        let storage = bindings(split.split)
-            .iter()
-            .filter(|&&t| t == vk::DescriptorType::STORAGE_BUFFER)
+        let lists = choose_lists(
+            split.split,
+            UNIFORM_LISTS.map(|(b, _)| len_of(b)),
+            &limits,
+            uniform_lists,
+        );
+        let storage = lists
+            .bindings()
+            .filter(|&b| BINDINGS[b] == vk::DescriptorType::STORAGE_BUFFER)
             .count() as u32;
         if storage > limits.max_storage_buffers {
             return Err(GpuError::Limit {
@@ -605,7 +647,7 @@ impl GpuRenderer {
                 });
             }
         }
-        Ok(split)
+        Ok((split, lists))
     }
 
     #[allow(clippy::too_many_arguments)]
@@ -664,17 +706,28 @@ impl GpuRenderer {
             upload(B_MATERIALS, "materials", padded(&scene.materials)),
             upload(B_SKIPS, "light skips", padded(&scene.skips)),
         ];
-        let split = self.check_limits(
+        let (split, lists) = self.check_limits(
             &uploads,
             &[(B_OUTPUT, out_bytes), (B_STATE, state_bytes)],
             options.storage_limit,
+            options.uniform_lists,
         )?;
         frame.chunk_shift = split.shifts;
         uploads[0].bytes = bytemuck::bytes_of(&frame).to_vec().into();
+        if lists == Lists::Uniform {
+            for (j, (binding, name)) in UNIFORM_LISTS.into_iter().enumerate() {
+                let list = &uploads
+                    .iter()
+                    .find(|u| u.binding == binding)
+                    .expect("uploaded")
+                    .bytes;
+                uploads.push(upload(UNIFORM_FIRST + j, name, uniform_copy(list).into()));
+            }
+        }
         let light_skips = !scene.skips.is_empty();
-        let (pipeline, build_time) =
-            self.pipeline
-                .get(key(options, kernel, split.split, light_skips))?;
+        let (pipeline, build_time) = self
+            .pipeline
+            .get(key(options, kernel, lists, light_skips))?;
         if !build_time.is_zero() {
             timings.add("pipeline", build_time);
         }
@@ -687,7 +740,15 @@ impl GpuRenderer {
         let upload_start = Instant::now();
         self.upload(res, &uploads)?;
         for slot in &mut res.slots {
-            self.bind_slot(slot, &res.scene, &uploads, &split, out_bytes, state_bytes)?;
+            self.bind_slot(
+                slot,
+                &res.scene,
+                &uploads,
+                &split,
+                lists,
+                out_bytes,
+                state_bytes,
+            )?;
         }
         timings.add("upload", upload_start.elapsed());
 
@@ -717,14 +778,7 @@ impl GpuRenderer {
                     left: rect.size[0] * rect.size[1],
                     rays: [0; 2],
                 };
-                self.submit_pass(
-                    &mut res.slots[s],
-                    pipeline,
-                    split.split,
-                    job,
-                    work,
-                    out_texels,
-                )?;
+                self.submit_pass(&mut res.slots[s], pipeline, lists, job, work, out_texels)?;
                 passes += 1;
                 in_flight.push_back((s, work));
             }
@@ -782,14 +836,7 @@ impl GpuRenderer {
                 free.push(s);
                 continue;
             }
-            self.submit_pass(
-                &mut res.slots[s],
-                pipeline,
-                split.split,
-                job,
-                work,
-                out_texels,
-            )?;
+            self.submit_pass(&mut res.slots[s], pipeline, lists, job, work, out_texels)?;
             passes += 1;
             in_flight.push_back((s, work));
         }
@@ -810,8 +857,10 @@ impl GpuRenderer {
             timings.count(CLOSEST_RAYS, rays[0]);
             timings.count(SHADOW_RAYS, rays[1]);
         }
-        if split.split {
-            timings.count("split lists", 1);
+        match lists {
+            Lists::Split => timings.count("split lists", 1),
+            Lists::Uniform => timings.count("uniform lists", 1),
+            Lists::Plain => {}
         }
         if retries > 0 {
             // Tiles redone with a smaller budget after a pass was cut short.
@@ -830,13 +879,13 @@ impl GpuRenderer {
             fences: Vec::new(),
             queries: vk::QueryPool::null(),
         };
-        // Each slot has a set of each layout (plain and split).
-        let both = bindings(false).iter().chain(bindings(true));
-        let uniform = both
+        // Each slot has a set of each layout.
+        let all = Lists::ALL.iter().flat_map(|l| l.bindings());
+        let uniform = all
             .clone()
-            .filter(|&&t| t == vk::DescriptorType::UNIFORM_BUFFER)
+            .filter(|&b| BINDINGS[b] == vk::DescriptorType::UNIFORM_BUFFER)
             .count() as u32;
-        let storage = both.count() as u32 - uniform;
+        let storage = all.count() as u32 - uniform;
         let sizes = [
             vk::DescriptorPoolSize::default()
                 .ty(vk::DescriptorType::UNIFORM_BUFFER)
@@ -858,7 +907,7 @@ impl GpuRenderer {
             pools.descriptor_pool = device
                 .create_descriptor_pool(
                     &vk::DescriptorPoolCreateInfo::default()
-                        .max_sets(2 * SLOTS as u32)
+                        .max_sets((Lists::ALL.len() * SLOTS) as u32)
                         .pool_sizes(&sizes),
                     None,
                 )
@@ -891,6 +940,9 @@ impl GpuRenderer {
             (9, "velocities"),
             (B_MATERIALS, "materials"),
             (B_SKIPS, "light skips"),
+            (UNIFORM_FIRST, "spheres (uniform copy)"),
+            (UNIFORM_FIRST + 1, "triangles (uniform copy)"),
+            (UNIFORM_FIRST + 2, "bvh nodes (uniform copy)"),
         ]
         .into_iter()
         .map(|(binding, name)| {
@@ -1024,10 +1076,7 @@ impl GpuRenderer {
             vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST,
             MemoryLocation::GpuToCpu,
         )?;
-        let set_layouts = [
-            self.pipeline.layout(false).set,
-            self.pipeline.layout(true).set,
-        ];
+        let set_layouts = Lists::ALL.map(|l| self.pipeline.layout(l).set);
         // SAFETY: the pool was sized for SLOTS sets of each layout.
         let sets = unsafe {
             shared.device.allocate_descriptor_sets(
@@ -1037,7 +1086,7 @@ impl GpuRenderer {
             )
         }
         .call("vkAllocateDescriptorSets")?;
-        let sets = [sets[0], sets[1]];
+        let sets = [sets[0], sets[1], sets[2]];
         let command = self.command_buffer(pools)?;
         let fence = self.fence(pools)?;
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
@@ -1095,15 +1144,17 @@ impl GpuRenderer {
         ))
     }
 
-    /// Points the slot's descriptor set of the render's layout at its
-    /// buffers, each bound with exactly its contents' size (the shader's
+    /// Points the slot's descriptor set of the render's layout (`lists`) at
+    /// its buffers, each bound with exactly its contents' size (the shader's
     /// `arrayLength` sees it), a split list chunk by chunk.
+    #[allow(clippy::too_many_arguments)]
     fn bind_slot(
         &self,
         slot: &mut Slot,
         scene: &[(usize, Reusable)],
         uploads: &[Upload],
         split: &Split,
+        lists: Lists,
         out_bytes: u64,
         state_bytes: u64,
     ) -> Result<(), GpuError> {
@@ -1124,39 +1175,40 @@ impl GpuRenderer {
                 .expect("uploaded");
             (buffer, len)
         };
-        let bound: Vec<(vk::Buffer, u64, u64)> = (0..bindings(split.split).len())
+        let bound: Vec<(usize, vk::Buffer, u64, u64)> = lists
+            .bindings()
             .map(|binding| match binding {
-                B_TILE => (slot.tile.raw, 0, slot.tile.size),
-                B_OUTPUT => (slot.output.get().raw, 0, out_bytes),
-                B_STATE => (slot.state.get().raw, 0, state_bytes),
-                B_STATUS => (slot.status.raw, 0, slot.status.size),
+                B_TILE => (binding, slot.tile.raw, 0, slot.tile.size),
+                B_OUTPUT => (binding, slot.output.get().raw, 0, out_bytes),
+                B_STATE => (binding, slot.state.get().raw, 0, state_bytes),
+                B_STATUS => (binding, slot.status.raw, 0, slot.status.size),
                 _ => match Split::chunk_of(binding) {
                     Some((j, k)) => {
                         let (buffer, len) = scene_list(SPLIT_LISTS[j].0);
                         let (offset, range) = split.range(j, k, len);
-                        (buffer, offset, range)
+                        (binding, buffer, offset, range)
                     }
                     None => {
                         let (buffer, len) = scene_list(binding);
-                        (buffer, 0, len)
+                        (binding, buffer, 0, len)
                     }
                 },
             })
             .collect();
         let infos: Vec<[vk::DescriptorBufferInfo; 1]> = bound
             .iter()
-            .map(|&(buffer, offset, range)| {
+            .map(|&(_, buffer, offset, range)| {
                 [vk::DescriptorBufferInfo::default()
                     .buffer(buffer)
                     .offset(offset)
                     .range(range)]
             })
             .collect();
-        let set = slot.sets[usize::from(split.split)];
+        let set = slot.sets[lists.index()];
         let writes: Vec<vk::WriteDescriptorSet> = infos
             .iter()
-            .enumerate()
-            .map(|(binding, info)| {
+            .zip(&bound)
+            .map(|(info, &(binding, ..))| {
                 vk::WriteDescriptorSet::default()
                     .dst_set(set)
                     .dst_binding(binding as u32)
@@ -1175,7 +1227,7 @@ impl GpuRenderer {
         &self,
         slot: &mut Slot,
         pipeline: vk::Pipeline,
-        split: bool,
+        lists: Lists,
         job: Job,
         work: TileWork,
         out_texels: u64,
@@ -1250,9 +1302,9 @@ impl GpuRenderer {
             device.cmd_bind_descriptor_sets(
                 slot.command,
                 vk::PipelineBindPoint::COMPUTE,
-                self.pipeline.layout(split).pipeline,
+                self.pipeline.layout(lists).pipeline,
                 0,
-                &[slot.sets[usize::from(split)]],
+                &[slot.sets[lists.index()]],
                 &[],
             );
             if slot.queries != vk::QueryPool::null() {
@@ -1392,6 +1444,38 @@ fn upload<'a>(binding: usize, name: &'static str, bytes: std::borrow::Cow<'a, [u
     }
 }
 
+/// Uniform lists (see "Uniform lists" in shaders/trace.wgsl) where they are
+/// `allowed`, the device is a CPU, no list is split, each of
+/// `layout::UNIFORM_LISTS` (`lens` bytes) fits its copy, and the device
+/// binds copies that large and that many uniform buffers; else the plain or
+/// split layout.
+fn choose_lists(split: bool, lens: [u64; 3], limits: &DeviceLimits, allowed: bool) -> Lists {
+    if split {
+        return Lists::Split;
+    }
+    // frame, tile and the three copies.
+    let uniform_buffers = 2 + UNIFORM_LISTS.len() as u32;
+    let fits = lens.iter().all(|&len| len <= UNIFORM_LIST_BYTES);
+    if allowed
+        && limits.cpu
+        && fits
+        && limits.max_uniform_range >= UNIFORM_LIST_BYTES
+        && limits.max_uniform_buffers >= uniform_buffers
+    {
+        Lists::Uniform
+    } else {
+        Lists::Plain
+    }
+}
+
+/// A list's uniform copy: its bytes, zero-padded to the shader's
+/// fixed-length array (`UNIFORM_LIST_BYTES`).
+fn uniform_copy(list: &[u8]) -> Vec<u8> {
+    let mut copy = list.to_vec();
+    copy.resize(UNIFORM_LIST_BYTES as usize, 0);
+    copy
+}
+
 fn binding_name(binding: usize) -> &'static str {
     match binding {
         B_OUTPUT => "tile output",
@@ -1431,4 +1515,62 @@ fn tiles(width: u32, height: u32, edge: u32) -> Vec<TileRect> {
         }
     }
     out
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn lavapipe() -> DeviceLimits {
+        DeviceLimits {
+            max_storage_range: 1 << 27,
+            max_uniform_range: 65536,
+            max_allocation: 1 << 30,
+            max_group_count: [65535; 3],
+            max_storage_buffers: 1_000_000,
+            max_uniform_buffers: 15,
+            cpu: true,
+            storage_offset_alignment: 16,
+            timestamp_period: 1.0,
+            timestamp_bits: 64,
+        }
+    }
+
+    #[test]
+    fn uniform_lists_only_on_a_cpu_device_where_every_copy_fits() {
+        let fits = [48, UNIFORM_LIST_BYTES, 64];
+        let cpu = lavapipe();
+        assert_eq!(choose_lists(false, fits, &cpu, true), Lists::Uniform);
+        assert_eq!(choose_lists(false, fits, &cpu, false), Lists::Plain);
+        assert_eq!(choose_lists(true, fits, &cpu, true), Lists::Split);
+        for j in 0..3 {
+            let mut lens = fits;
+            lens[j] = UNIFORM_LIST_BYTES + 48;
+            assert_eq!(
+                choose_lists(false, lens, &cpu, true),
+                Lists::Plain,
+                "list {j}"
+            );
+        }
+        let gpu = DeviceLimits { cpu: false, ..cpu };
+        assert_eq!(choose_lists(false, fits, &gpu, true), Lists::Plain);
+        let small = DeviceLimits {
+            max_uniform_range: 16384,
+            ..cpu
+        };
+        assert_eq!(choose_lists(false, fits, &small, true), Lists::Plain);
+        let few = DeviceLimits {
+            max_uniform_buffers: 4,
+            ..cpu
+        };
+        assert_eq!(choose_lists(false, fits, &few, true), Lists::Plain);
+    }
+
+    #[test]
+    fn a_uniform_copy_is_its_list_zero_padded_to_the_fixed_length() {
+        let copy = uniform_copy(&[1, 2, 3]);
+        assert_eq!(copy.len() as u64, UNIFORM_LIST_BYTES);
+        assert_eq!(&copy[..3], &[1, 2, 3]);
+        assert!(copy[3..].iter().all(|&b| b == 0));
+    }
 }

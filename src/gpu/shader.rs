@@ -58,6 +58,9 @@ fn validator() -> Validator {
 pub struct Variant {
     /// Big lists span several bindings (`layout::SPLIT_LISTS`).
     pub split: bool,
+    /// Spheres, triangles and nodes are read from their uniform copies
+    /// (`layout::UNIFORM_LISTS`).
+    pub uniform_lists: bool,
     /// Some point light lies on a surface (`lights_on_surfaces`).
     pub light_skips: bool,
 }
@@ -72,6 +75,7 @@ pub fn pipeline_constants(
     let flag = |on: bool| if on { 1.0 } else { 0.0 };
     constants.insert("ROBUST".into(), flag(methods == Methods::Robust));
     constants.insert("SPLIT".into(), flag(variant.split));
+    constants.insert("UNIFORM_LISTS".into(), flag(variant.uniform_lists));
     constants.insert("LIGHT_SKIPS".into(), flag(variant.light_skips));
     for (name, on) in features.overrides() {
         constants.insert(name.into(), flag(on));
@@ -88,10 +92,15 @@ pub fn specialize(
 ) -> Result<(Module, ModuleInfo), ShaderError> {
     let (module, info) = parsed()?;
     let what = format!(
-        "{} methods, features {}{}{}",
+        "{} methods, features {}{}{}{}",
         methods.name(),
         features.label(),
         if variant.split { ", split lists" } else { "" },
+        if variant.uniform_lists {
+            ", uniform lists"
+        } else {
+            ""
+        },
         if variant.light_skips {
             ", lights on surfaces"
         } else {
@@ -402,12 +411,36 @@ mod tests {
         assert!(!used.iter().any(chunk), "{used:?}");
         let variant = Variant {
             split: true,
-            light_skips: false,
+            ..Variant::default()
         };
         let (split, _) = specialize(Methods::Robust, Features::ALL, variant).unwrap();
         let used = globals_used(&split);
         for name in ["triangles3", "normals3", "materials3", "nodes3"] {
             assert!(used.iter().any(|n| n == name), "{name} unused: {used:?}");
+        }
+    }
+
+    /// A shader with uniform lists reads spheres, triangles and nodes only
+    /// from their uniform copies; any other reads only the storage lists.
+    #[test]
+    fn only_a_uniform_lists_shader_reads_the_uniform_copies() {
+        let (plain, _) = specialize(Methods::Robust, Features::ALL, Variant::default()).unwrap();
+        let used = globals_used(&plain);
+        for name in ["spheres", "triangles", "nodes"] {
+            assert!(used.iter().any(|n| n == name), "{name} unused: {used:?}");
+            let copy = format!("{name}_u");
+            assert!(!used.contains(&copy), "{copy} used: {used:?}");
+        }
+        let variant = Variant {
+            uniform_lists: true,
+            ..Variant::default()
+        };
+        let (uniform, _) = specialize(Methods::Robust, Features::ALL, variant).unwrap();
+        let used = globals_used(&uniform);
+        for name in ["spheres", "triangles", "nodes"] {
+            let copy = format!("{name}_u");
+            assert!(used.contains(&copy), "{copy} unused: {used:?}");
+            assert!(!used.iter().any(|n| n == name), "{name} used: {used:?}");
         }
     }
 
@@ -480,10 +513,12 @@ mod tests {
                 multisample: bits & 32 != 0,
             };
             for methods in Methods::ALL {
-                for bits in 0..4 {
+                // Split and uniform lists never go together.
+                for bits in [0, 1, 2, 3, 4, 6] {
                     let variant = Variant {
                         split: bits & 1 != 0,
                         light_skips: bits & 2 != 0,
+                        uniform_lists: bits & 4 != 0,
                     };
                     spirv(methods, f, variant).unwrap_or_else(|e| panic!("{e}"));
                 }
