@@ -307,6 +307,43 @@ fn uniform_lists_render_the_storage_lists_image() {
     assert_eq!(t_big.counted("uniform lists"), 0);
 }
 
+/// `prepare` builds the pipeline a render of the scene then takes from the
+/// cache, whichever lists the scene gets.
+#[test]
+fn prepare_builds_the_pipeline_the_render_uses() {
+    for (n, uniform_lists) in [(6, true), (6, false), (30, true)] {
+        let scene = bowl(n);
+        let Some(gpu) = gpu() else {
+            return;
+        };
+        let gpu = gpu.lock().unwrap_or_else(|e| e.into_inner());
+        let effects = Effects::resolve(&scene.settings);
+        let packed = GpuScene::pack(&scene, &Bvh::for_render(&scene, &effects));
+        let options = GpuRenderOptions {
+            tile_size: 16,
+            effects,
+            features: Features::of(&scene, &effects),
+            uniform_lists,
+            // Pipelines no other test in this binary builds.
+            methods: glint::methods::Methods::Naive,
+            ..Default::default()
+        };
+        gpu.renderer
+            .prepare(&packed, &options, glint::gpu::Kernel::Render)
+            .expect("pipeline builds");
+        let (_, timings) = gpu
+            .renderer
+            .render(&packed, &Camera::new(8, 6), WHITE, &options, &|_, _| {})
+            .expect("render succeeds");
+        assert_eq!(
+            timings.phase("pipeline"),
+            None,
+            "{} triangles, uniform lists {uniform_lists}: the render built its pipeline",
+            packed.triangles.len()
+        );
+    }
+}
+
 /// Lists larger than one binding are split over several, and the image is
 /// the same bit for bit; past what the split bindings hold, the render is
 /// refused before any work.

@@ -379,6 +379,15 @@ impl GpuRenderer {
         })
     }
 
+    /// The device's limits, storage bindings capped at `storage_limit`.
+    fn limits(&self, storage_limit: Option<u64>) -> DeviceLimits {
+        let mut limits = self.ctx.shared.limits;
+        if let Some(cap) = storage_limit {
+            limits.max_storage_range = limits.max_storage_range.min(cap);
+        }
+        limits
+    }
+
     /// Time to build the pipeline `options` call for from scratch (no
     /// cache), with the plain lists.
     pub fn measure_build(
@@ -398,10 +407,7 @@ impl GpuRenderer {
         options: &GpuRenderOptions,
         kernel: Kernel,
     ) -> Result<Duration, GpuError> {
-        let mut limits = self.ctx.shared.limits;
-        if let Some(cap) = options.storage_limit {
-            limits.max_storage_range = limits.max_storage_range.min(cap);
-        }
+        let limits = self.limits(options.storage_limit);
         let split_lens = [
             padded(&scene.triangles).len(),
             padded(&scene.normals).len(),
@@ -570,10 +576,7 @@ impl GpuRenderer {
         storage_limit: Option<u64>,
         uniform_lists: bool,
     ) -> Result<(Split, Lists), GpuError> {
-        let mut limits = self.ctx.shared.limits;
-        if let Some(cap) = storage_limit {
-            limits.max_storage_range = limits.max_storage_range.min(cap);
-        }
+        let limits = self.limits(storage_limit);
         let len_of = |binding: usize| {
             uploads
                 .iter()
