@@ -341,8 +341,7 @@ struct Slot {
     state: Reusable,
     command: vk::CommandBuffer,
     fence: vk::Fence,
-    /// A set of the plain layout, then one of the split layout.
-    /// One per `Lists::ALL`.
+    /// A descriptor set of each layout, in `Lists::ALL` order.
     sets: [vk::DescriptorSet; 3],
     /// Its two timestamps in `Pools::queries` (null pool: none).
     queries: vk::QueryPool,
