@@ -205,7 +205,8 @@ pub const fn uniform_list_len(j: usize) -> u64 {
     let stride = match j {
         0 => std::mem::size_of::<GpuSphere>(),
         1 => std::mem::size_of::<GpuTriangle>(),
-        _ => std::mem::size_of::<GpuWideNode>(),
+        2 => std::mem::size_of::<GpuWideNode>(),
+        _ => panic!("UNIFORM_LISTS has three lists"),
     };
     UNIFORM_LIST_BYTES / stride as u64
 }

@@ -13,9 +13,9 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
 
-use super::{repeat, scene_name, Stat};
+use super::{base_options, repeat, scene_name, Stat};
 use crate::cpu::Precision;
-use crate::gpu::{DeviceSelector, GpuRenderOptions};
+use crate::gpu::DeviceSelector;
 use crate::render::{Backend, RenderOptions, Renderer};
 use crate::scene::read_scene;
 use crate::Error;
@@ -170,16 +170,12 @@ pub fn run_embree(
 ) -> Result<EmbreeReport, Error> {
     let n = options.repeat.max(1);
     let threads = rayon::current_num_threads();
-    let base = RenderOptions {
-        width: options.width,
-        height: options.height,
-        device: options.device.clone(),
-        gpu: GpuRenderOptions {
-            uniform_lists: options.uniform_lists,
-            ..GpuRenderOptions::default()
-        },
-        ..RenderOptions::default()
-    };
+    let base = base_options(
+        options.width,
+        options.height,
+        options.device.clone(),
+        options.uniform_lists,
+    );
     let gpu = options
         .gpu
         .then(|| {

@@ -22,6 +22,8 @@ pub use specialize::{run_specialize, specialize_scenes, SpecializeOptions};
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
+use crate::gpu::{DeviceSelector, GpuRenderOptions};
+use crate::render::RenderOptions;
 use crate::Error;
 
 /// Median and spread of repeated timings.
@@ -87,6 +89,27 @@ pub fn default_scenes(note: &mut dyn FnMut(&str)) -> Vec<PathBuf> {
     }
     out.extend(scene_files("scenes"));
     out
+}
+
+/// What a timing benchmark's renderers share: the image size, the device,
+/// and whether a CPU device may read the uniform list copies
+/// (`GpuRenderOptions::uniform_lists`).
+pub(crate) fn base_options(
+    width: u32,
+    height: u32,
+    device: Option<DeviceSelector>,
+    uniform_lists: bool,
+) -> RenderOptions {
+    RenderOptions {
+        width,
+        height,
+        device,
+        gpu: GpuRenderOptions {
+            uniform_lists,
+            ..GpuRenderOptions::default()
+        },
+        ..RenderOptions::default()
+    }
 }
 
 /// A scene's name in reports: its file's stem (the whole path if none).

@@ -7,10 +7,10 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use super::{repeat, scene_name, Stat};
+use super::{base_options, repeat, scene_name, Stat};
 use crate::bvh::Bvh;
 use crate::cpu::Precision;
-use crate::gpu::{DeviceSelector, GpuRenderOptions};
+use crate::gpu::DeviceSelector;
 use crate::render::{Backend, RenderOptions, Renderer};
 use crate::scene::read_scene;
 use crate::Error;
@@ -63,16 +63,12 @@ pub struct BenchReport {
 /// Runs the benchmark; `progress` receives one line per finished measurement.
 pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<BenchReport, Error> {
     let n = options.repeat.max(1);
-    let base = RenderOptions {
-        width: options.width,
-        height: options.height,
-        device: options.device.clone(),
-        gpu: GpuRenderOptions {
-            uniform_lists: options.uniform_lists,
-            ..GpuRenderOptions::default()
-        },
-        ..RenderOptions::default()
-    };
+    let base = base_options(
+        options.width,
+        options.height,
+        options.device.clone(),
+        options.uniform_lists,
+    );
     let mut report = BenchReport {
         device: None,
         device_creation: None,

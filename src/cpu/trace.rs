@@ -545,7 +545,6 @@ pub(super) fn hit_leaf<R: Real>(
     skip: &[u32],
     graze: R,
 ) -> bool {
-    // The shader branches on ROBUST inside hit_sphere and hit_triangle.
     let robust = scene.methods == Methods::Robust;
     let block = &scene.wide.leaves[leaf];
     if block.simd() && robust && !scene.motion_blur && skip.is_empty() {
@@ -557,37 +556,34 @@ pub(super) fn hit_leaf<R: Real>(
         return false;
     }
     for &prim in &scene.prim_refs[scene.wide.spans[leaf].range()] {
-        let index = (prim & !SPHERE_BIT) as usize;
-        if any_hit && skip.contains(&prim) {
-            // A surface through the light: triangles never block it, a
-            // sphere only with its other crossing.
-            if prim & SPHERE_BIT != 0 {
-                let sphere = &sphere_at(scene, index, ray.time);
-                let t = hit_sphere_through_end(ray, sphere, graze_band(graze, sphere.radius));
-                if t < best.t {
-                    *best = Hit {
-                        t,
-                        prim,
-                        b1: R::ZERO,
-                        b2: R::ZERO,
-                    };
-                    return true;
-                }
-            }
-            continue;
+        if hit_prim(scene, ray, prim, best, any_hit, skip, graze) {
+            return true;
         }
+    }
+    false
+}
+
+/// The primitive `prim` (a reference): true when `any_hit` and it blocks,
+/// so the traversal can stop. The shader's `hit_prim`, which its traversal
+/// calls for every reference of a node's hit leaves in one loop.
+fn hit_prim<R: Real>(
+    scene: &CpuScene<R>,
+    ray: &Ray<R>,
+    prim: u32,
+    best: &mut Hit<R>,
+    any_hit: bool,
+    skip: &[u32],
+    graze: R,
+) -> bool {
+    // The shader branches on ROBUST inside hit_sphere and hit_triangle.
+    let robust = scene.methods == Methods::Robust;
+    let index = (prim & !SPHERE_BIT) as usize;
+    if any_hit && skip.contains(&prim) {
+        // A surface through the light: triangles never block it, a
+        // sphere only with its other crossing.
         if prim & SPHERE_BIT != 0 {
             let sphere = &sphere_at(scene, index, ray.time);
-            let t = if robust {
-                let band = if any_hit {
-                    graze_band(graze, sphere.radius)
-                } else {
-                    R::ZERO
-                };
-                hit_sphere(ray, sphere, best.t, band)
-            } else {
-                hit_sphere_naive(ray, sphere, best.t)
-            };
+            let t = hit_sphere_through_end(ray, sphere, graze_band(graze, sphere.radius));
             if t < best.t {
                 *best = Hit {
                     t,
@@ -595,23 +591,42 @@ pub(super) fn hit_leaf<R: Real>(
                     b1: R::ZERO,
                     b2: R::ZERO,
                 };
-                if any_hit {
-                    return true;
-                }
+                return true;
             }
-        } else {
-            let tri = &triangle_at(scene, index, ray.time);
-            let (t, b1, b2) = if robust {
-                hit_triangle(ray, tri, best.t)
+        }
+        return false;
+    }
+    if prim & SPHERE_BIT != 0 {
+        let sphere = &sphere_at(scene, index, ray.time);
+        let t = if robust {
+            let band = if any_hit {
+                graze_band(graze, sphere.radius)
             } else {
-                hit_triangle_naive(ray, tri, best.t)
+                R::ZERO
             };
-            if t < best.t {
-                *best = Hit { t, prim, b1, b2 };
-                if any_hit {
-                    return true;
-                }
-            }
+            hit_sphere(ray, sphere, best.t, band)
+        } else {
+            hit_sphere_naive(ray, sphere, best.t)
+        };
+        if t < best.t {
+            *best = Hit {
+                t,
+                prim,
+                b1: R::ZERO,
+                b2: R::ZERO,
+            };
+            return any_hit;
+        }
+    } else {
+        let tri = &triangle_at(scene, index, ray.time);
+        let (t, b1, b2) = if robust {
+            hit_triangle(ray, tri, best.t)
+        } else {
+            hit_triangle_naive(ray, tri, best.t)
+        };
+        if t < best.t {
+            *best = Hit { t, prim, b1, b2 };
+            return any_hit;
         }
     }
     false

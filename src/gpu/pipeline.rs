@@ -54,9 +54,10 @@ pub struct PipelineKey {
 
 /// How a render binds the scene's lists: the descriptor set layout, and
 /// the shader variant that reads it.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Lists {
     /// One storage binding per list: the first `PLAIN_BINDINGS`.
+    #[default]
     Plain,
     /// Big lists span several bindings (`layout::SPLIT_LISTS`): the plain
     /// bindings and the extra chunks.
@@ -220,8 +221,7 @@ impl TracePipeline {
 
     fn build(&self, key: PipelineKey) -> Result<vk::Pipeline, GpuError> {
         let variant = super::shader::Variant {
-            split: key.lists == Lists::Split,
-            uniform_lists: key.lists == Lists::Uniform,
+            lists: key.lists,
             light_skips: key.light_skips,
         };
         let words = super::shader::spirv(key.methods, key.features, variant)?;

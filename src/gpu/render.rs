@@ -407,25 +407,9 @@ impl GpuRenderer {
         kernel: Kernel,
     ) -> Result<Duration, GpuError> {
         let limits = self.limits(options.storage_limit);
-        let split_lens = [
-            padded(&scene.triangles).len(),
-            padded(&scene.normals).len(),
-            padded(&scene.materials).len(),
-            padded(&scene.nodes).len(),
-        ];
         // A plan that fails fails the render too, which then says why.
-        let split = Split::plan(split_lens.map(|l| l as u64), &limits).is_ok_and(|s| s.split);
-        let lens = [
-            padded(&scene.spheres).len(),
-            padded(&scene.triangles).len(),
-            padded(&scene.nodes).len(),
-        ];
-        let lists = choose_lists(
-            split,
-            lens.map(|l| l as u64),
-            &limits,
-            options.uniform_lists,
-        );
+        let lists = plan_lists(&scene_uploads(scene), &limits, options.uniform_lists)
+            .map_or(Lists::Plain, |(_, lists)| lists);
         let light_skips = !scene.skips.is_empty();
         Ok(self
             .pipeline
@@ -576,19 +560,7 @@ impl GpuRenderer {
         uniform_lists: bool,
     ) -> Result<(Split, Lists), GpuError> {
         let limits = self.limits(storage_limit);
-        let len_of = |binding: usize| {
-            uploads
-                .iter()
-                .find(|u| u.binding == binding)
-                .map_or(0, |u| u.bytes.len() as u64)
-        };
-        let split = Split::plan(SPLIT_LISTS.map(|(b, _)| len_of(b)), &limits)?;
-        let lists = choose_lists(
-            split.split,
-            UNIFORM_LISTS.map(|(b, _)| len_of(b)),
-            &limits,
-            uniform_lists,
-        );
+        let (split, lists) = plan_lists(uploads, &limits, uniform_lists)?;
         let storage = lists
             .bindings()
             .filter(|&b| BINDINGS[b] == vk::DescriptorType::STORAGE_BUFFER)
@@ -696,18 +668,12 @@ impl GpuRenderer {
         };
         let out_bytes = out_texels * TEXEL_BYTES;
         let mut frame = scene.frame(camera, background, &options.effects, &options.features);
-        let mut uploads = vec![
-            upload(B_FRAME, "frame", bytemuck::bytes_of(&frame).to_vec().into()),
-            upload(2, "spheres", padded(&scene.spheres)),
-            upload(3, "triangles", padded(&scene.triangles)),
-            upload(4, "normals", padded(&scene.normals)),
-            upload(5, "lights", padded(&scene.lights)),
-            upload(6, "bvh nodes", padded(&scene.nodes)),
-            upload(7, "primitive refs", padded(&scene.prim_refs)),
-            upload(9, "velocities", padded(&scene.velocities)),
-            upload(B_MATERIALS, "materials", padded(&scene.materials)),
-            upload(B_SKIPS, "light skips", padded(&scene.skips)),
-        ];
+        let mut uploads = vec![upload(
+            B_FRAME,
+            "frame",
+            bytemuck::bytes_of(&frame).to_vec().into(),
+        )];
+        uploads.extend(scene_uploads(scene));
         let (split, lists) = self.check_limits(
             &uploads,
             &[(B_OUTPUT, out_bytes), (B_STATE, state_bytes)],
@@ -1444,6 +1410,45 @@ fn upload<'a>(binding: usize, name: &'static str, bytes: std::borrow::Cow<'a, [u
         name,
         bytes,
     }
+}
+
+/// The scene's lists as uploaded, one per binding (the frame and the
+/// uniform copies are added by the render).
+fn scene_uploads(scene: &GpuScene) -> Vec<Upload<'_>> {
+    vec![
+        upload(2, "spheres", padded(&scene.spheres)),
+        upload(3, "triangles", padded(&scene.triangles)),
+        upload(4, "normals", padded(&scene.normals)),
+        upload(5, "lights", padded(&scene.lights)),
+        upload(6, "bvh nodes", padded(&scene.nodes)),
+        upload(7, "primitive refs", padded(&scene.prim_refs)),
+        upload(9, "velocities", padded(&scene.velocities)),
+        upload(B_MATERIALS, "materials", padded(&scene.materials)),
+        upload(B_SKIPS, "light skips", padded(&scene.skips)),
+    ]
+}
+
+/// How a render with `uploads` binds its lists: split over bindings where
+/// one cannot hold them, else as `choose_lists` says.
+fn plan_lists(
+    uploads: &[Upload],
+    limits: &DeviceLimits,
+    uniform_lists: bool,
+) -> Result<(Split, Lists), GpuError> {
+    let len_of = |binding: usize| {
+        uploads
+            .iter()
+            .find(|u| u.binding == binding)
+            .map_or(0, |u| u.bytes.len() as u64)
+    };
+    let split = Split::plan(SPLIT_LISTS.map(|(b, _)| len_of(b)), limits)?;
+    let lists = choose_lists(
+        split.split,
+        UNIFORM_LISTS.map(|(b, _)| len_of(b)),
+        limits,
+        uniform_lists,
+    );
+    Ok((split, lists))
 }
 
 /// Uniform lists (see "Uniform lists" in shaders/trace.wgsl) where they are

@@ -15,6 +15,7 @@ use naga::proc::{BoundsCheckPolicies, BoundsCheckPolicy};
 use naga::valid::{Capabilities, ModuleInfo, ValidationFlags, Validator};
 use naga::{Block, Expression, Function, Handle, Literal, Module, Statement};
 
+use super::pipeline::Lists;
 use crate::info::Features;
 use crate::methods::Methods;
 
@@ -56,11 +57,10 @@ fn validator() -> Validator {
 /// What the packed data, not the scene's effects, asks of the shader.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct Variant {
-    /// Big lists span several bindings (`layout::SPLIT_LISTS`).
-    pub split: bool,
-    /// Spheres, triangles and nodes are read from their uniform copies
+    /// How the lists are bound: split over several bindings
+    /// (`layout::SPLIT_LISTS`), or read from their uniform copies
     /// (`layout::UNIFORM_LISTS`).
-    pub uniform_lists: bool,
+    pub lists: Lists,
     /// Some point light lies on a surface (`lights_on_surfaces`).
     pub light_skips: bool,
 }
@@ -74,8 +74,11 @@ pub fn pipeline_constants(
     let mut constants = naga::back::PipelineConstants::default();
     let flag = |on: bool| if on { 1.0 } else { 0.0 };
     constants.insert("ROBUST".into(), flag(methods == Methods::Robust));
-    constants.insert("SPLIT".into(), flag(variant.split));
-    constants.insert("UNIFORM_LISTS".into(), flag(variant.uniform_lists));
+    constants.insert("SPLIT".into(), flag(variant.lists == Lists::Split));
+    constants.insert(
+        "UNIFORM_LISTS".into(),
+        flag(variant.lists == Lists::Uniform),
+    );
     constants.insert("LIGHT_SKIPS".into(), flag(variant.light_skips));
     for (name, on) in features.overrides() {
         constants.insert(name.into(), flag(on));
@@ -92,14 +95,13 @@ pub fn specialize(
 ) -> Result<(Module, ModuleInfo), ShaderError> {
     let (module, info) = parsed()?;
     let what = format!(
-        "{} methods, features {}{}{}{}",
+        "{} methods, features {}{}{}",
         methods.name(),
         features.label(),
-        if variant.split { ", split lists" } else { "" },
-        if variant.uniform_lists {
-            ", uniform lists"
-        } else {
-            ""
+        match variant.lists {
+            Lists::Plain => "",
+            Lists::Split => ", split lists",
+            Lists::Uniform => ", uniform lists",
         },
         if variant.light_skips {
             ", lights on surfaces"
@@ -410,7 +412,7 @@ mod tests {
         assert!(used.iter().any(|n| n == "triangles"), "{used:?}");
         assert!(!used.iter().any(chunk), "{used:?}");
         let variant = Variant {
-            split: true,
+            lists: Lists::Split,
             ..Variant::default()
         };
         let (split, _) = specialize(Methods::Robust, Features::ALL, variant).unwrap();
@@ -432,7 +434,7 @@ mod tests {
             assert!(!used.contains(&copy), "{copy} used: {used:?}");
         }
         let variant = Variant {
-            uniform_lists: true,
+            lists: Lists::Uniform,
             ..Variant::default()
         };
         let (uniform, _) = specialize(Methods::Robust, Features::ALL, variant).unwrap();
@@ -513,14 +515,11 @@ mod tests {
                 multisample: bits & 32 != 0,
             };
             for methods in Methods::ALL {
-                // Split and uniform lists never go together.
-                for bits in [0, 1, 2, 3, 4, 6] {
-                    let variant = Variant {
-                        split: bits & 1 != 0,
-                        light_skips: bits & 2 != 0,
-                        uniform_lists: bits & 4 != 0,
-                    };
-                    spirv(methods, f, variant).unwrap_or_else(|e| panic!("{e}"));
+                for lists in Lists::ALL {
+                    for light_skips in [false, true] {
+                        let variant = Variant { lists, light_skips };
+                        spirv(methods, f, variant).unwrap_or_else(|e| panic!("{e}"));
+                    }
                 }
             }
         }
