@@ -32,6 +32,10 @@ use crate::methods::Methods;
 /// Rays in a packet.
 pub const WIDTH: usize = 32;
 
+/// Fewer of an octet's rays than this meet a leaf block one by one: the
+/// octet test costs about three single rays' tests.
+const OCTET_MIN_RAYS: u32 = 3;
+
 // A packet's rays are bits of a u32 mask, taken eight at a time (AVX2).
 const _: () = assert!(WIDTH <= 32 && WIDTH.is_multiple_of(8));
 
@@ -61,6 +65,11 @@ struct Soa {
     o: [Lanes; 3],
     dir: [Lanes; 3],
     inv: [Lanes; 3],
+    /// The rays' `shear`, for the triangle test.
+    shear: [Lanes; 3],
+    /// Per octet of rays, their axis order `k` where all eight share it
+    /// (the octet's triangle tests can then run across its rays).
+    k: [Option<[usize; 3]>; WIDTH / 8],
 }
 
 impl Soa {
@@ -70,12 +79,21 @@ impl Soa {
             o: [Lanes([0.0; WIDTH]); 3],
             dir: [Lanes([0.0; WIDTH]); 3],
             inv: [Lanes([0.0; WIDTH]); 3],
+            shear: [Lanes([0.0; WIDTH]); 3],
+            k: [None; WIDTH / 8],
         };
         for (r, ray) in rays.iter().enumerate() {
             for axis in 0..3 {
                 soa.o[axis].0[r] = ray.origin[axis];
                 soa.dir[axis].0[r] = ray.dir[axis];
                 soa.inv[axis].0[r] = ray.inv_dir[axis];
+                soa.shear[axis].0[r] = ray.shear[axis];
+            }
+        }
+        for (g, k) in soa.k.iter_mut().enumerate() {
+            let octet = &rays[8 * g..8 * g + 8];
+            if octet.iter().all(|r| r.k == octet[0].k) {
+                *k = Some(octet[0].k);
             }
         }
         soa
@@ -279,6 +297,135 @@ fn children_avx2<const ANY_HIT: bool>(
         }
     }
     out
+}
+
+/// A leaf block's triangles against the rays of octet `g` in `m8` that
+/// share the axis order `k`, eight rays at a time with AVX2: per ray
+/// `wide::hit_block_f32`'s operations in its order on the same values (the
+/// vertices broadcast where it loads them four triangles wide; ordered
+/// compares as `cmplt` and `cmpgt`, unordered as `cmpne`), each triangle
+/// against the ray's limit at the block's start, and its hit kept, as
+/// there, only when nearer than the block's hits before it. So each ray
+/// gets `hit_block_f32`'s answer to the bit. Writes the rays' new hits
+/// and returns the bits of the rays that found one.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn hit_block_octet(
+    block: &wide::LeafBlock,
+    soa: &Soa,
+    k: [usize; 3],
+    g: usize,
+    m8: u32,
+    best: &mut [Hit<f32>; WIDTH],
+    best_t: &mut Lanes,
+) -> u32 {
+    use std::arch::x86_64::*;
+    let [kx, ky, kz] = k;
+    let mut t_out = Lanes([0.0; WIDTH]);
+    let mut b1_out = Lanes([0.0; WIDTH]);
+    let mut b2_out = Lanes([0.0; WIDTH]);
+    let mut which = [0i32; 8];
+    // SAFETY: `Lanes` is 32-byte aligned and holds `WIDTH` f32, a multiple
+    // of eight, as the aligned loads and stores at every eighth one need;
+    // `which` is written unaligned; the rest is arithmetic on registers.
+    let found = unsafe {
+        let load = |l: &Lanes| _mm256_load_ps(l.0.as_ptr().add(8 * g));
+        let (ox, oy, oz) = (load(&soa.o[kx]), load(&soa.o[ky]), load(&soa.o[kz]));
+        let (s0, s1, s2) = (
+            load(&soa.shear[0]),
+            load(&soa.shear[1]),
+            load(&soa.shear[2]),
+        );
+        let t_max = load(best_t);
+        let zero = _mm256_setzero_ps();
+        let one = _mm256_set1_ps(1.0);
+        let mut run_t = t_max;
+        let mut run_b1 = zero;
+        let mut run_b2 = zero;
+        let mut run_k = _mm256_set1_epi32(-1);
+        let lanes = block.lanes();
+        for j in 0..4 {
+            if lanes & 1 << j == 0 {
+                continue;
+            }
+            let p = |axis: usize, corner: usize| _mm256_set1_ps(block.p[axis][corner][j]);
+            let a_z = _mm256_sub_ps(p(kz, 0), oz);
+            let b_z = _mm256_sub_ps(p(kz, 1), oz);
+            let c_z = _mm256_sub_ps(p(kz, 2), oz);
+            let ax = _mm256_sub_ps(_mm256_sub_ps(p(kx, 0), ox), _mm256_mul_ps(s0, a_z));
+            let ay = _mm256_sub_ps(_mm256_sub_ps(p(ky, 0), oy), _mm256_mul_ps(s1, a_z));
+            let bx = _mm256_sub_ps(_mm256_sub_ps(p(kx, 1), ox), _mm256_mul_ps(s0, b_z));
+            let by = _mm256_sub_ps(_mm256_sub_ps(p(ky, 1), oy), _mm256_mul_ps(s1, b_z));
+            let cx = _mm256_sub_ps(_mm256_sub_ps(p(kx, 2), ox), _mm256_mul_ps(s0, c_z));
+            let cy = _mm256_sub_ps(_mm256_sub_ps(p(ky, 2), oy), _mm256_mul_ps(s1, c_z));
+            let u = _mm256_sub_ps(_mm256_mul_ps(cx, by), _mm256_mul_ps(cy, bx));
+            let v = _mm256_sub_ps(_mm256_mul_ps(ax, cy), _mm256_mul_ps(ay, cx));
+            let w = _mm256_sub_ps(_mm256_mul_ps(bx, ay), _mm256_mul_ps(by, ax));
+            let lt = |a, b| _mm256_cmp_ps::<_CMP_LT_OS>(a, b);
+            let gt = |a, b| _mm256_cmp_ps::<_CMP_GT_OS>(a, b);
+            let or = |a, b| _mm256_or_ps(a, b);
+            let and = |a, b| _mm256_and_ps(a, b);
+            let some_negative = or(or(lt(u, zero), lt(v, zero)), lt(w, zero));
+            let some_positive = or(or(gt(u, zero), gt(v, zero)), gt(w, zero));
+            let det = _mm256_add_ps(_mm256_add_ps(u, v), w);
+            let t_scaled = _mm256_add_ps(
+                _mm256_add_ps(
+                    _mm256_mul_ps(u, _mm256_mul_ps(s2, a_z)),
+                    _mm256_mul_ps(v, _mm256_mul_ps(s2, b_z)),
+                ),
+                _mm256_mul_ps(w, _mm256_mul_ps(s2, c_z)),
+            );
+            let end = _mm256_mul_ps(t_max, det);
+            let positive = and(gt(t_scaled, zero), lt(t_scaled, end));
+            let negative = and(lt(t_scaled, zero), gt(t_scaled, end));
+            let det_positive = gt(det, zero);
+            let inside = or(
+                and(det_positive, positive),
+                _mm256_andnot_ps(det_positive, negative),
+            );
+            let hit = _mm256_andnot_ps(
+                and(some_negative, some_positive),
+                and(_mm256_cmp_ps::<_CMP_NEQ_UQ>(det, zero), inside),
+            );
+            if _mm256_movemask_ps(hit) as u32 & m8 == 0 {
+                continue;
+            }
+            let inv_det = _mm256_div_ps(one, det);
+            let t = _mm256_mul_ps(t_scaled, inv_det);
+            let keep = and(hit, lt(t, run_t));
+            run_t = _mm256_blendv_ps(run_t, t, keep);
+            run_b1 = _mm256_blendv_ps(run_b1, _mm256_mul_ps(v, inv_det), keep);
+            run_b2 = _mm256_blendv_ps(run_b2, _mm256_mul_ps(w, inv_det), keep);
+            run_k = _mm256_blendv_epi8(
+                run_k,
+                _mm256_set1_epi32(j as i32),
+                _mm256_castps_si256(keep),
+            );
+        }
+        let found = !(_mm256_movemask_ps(_mm256_castsi256_ps(run_k)) as u32) & m8;
+        if found != 0 {
+            _mm256_store_ps(t_out.0.as_mut_ptr().add(8 * g), run_t);
+            _mm256_store_ps(b1_out.0.as_mut_ptr().add(8 * g), run_b1);
+            _mm256_store_ps(b2_out.0.as_mut_ptr().add(8 * g), run_b2);
+            _mm256_storeu_si256(which.as_mut_ptr().cast(), run_k);
+        }
+        found
+    };
+    let mut each = found;
+    while each != 0 {
+        let i = each.trailing_zeros() as usize;
+        each &= each - 1;
+        let r = 8 * g + i;
+        best[r] = Hit {
+            t: t_out.0[r],
+            prim: block.prims[which[i] as usize],
+            b1: b1_out.0[r],
+            b2: b2_out.0[r],
+        };
+        best_t.0[r] = t_out.0[r];
+    }
+    found << (8 * g)
 }
 
 /// The lanes of a 4-bit mask, for selects.
@@ -493,7 +640,28 @@ fn traverse_with<const AVX2: bool, const ANY_HIT: bool>(
                     }
                 }
             } else if leaf.simd() {
-                // `hit_leaf`'s own first branch, inlined here.
+                // `hit_leaf`'s own first branch, inlined here: across an
+                // octet's rays where they share an axis order and enough
+                // of them came, else ray by ray.
+                #[cfg(target_arch = "x86_64")]
+                if AVX2 {
+                    for (g, k) in soa.k.iter().enumerate() {
+                        let m8 = rays_in >> (8 * g) & 255;
+                        let Some(k) = *k else { continue };
+                        if m8.count_ones() < OCTET_MIN_RAYS {
+                            continue;
+                        }
+                        rays_in &= !(m8 << (8 * g));
+                        // SAFETY: AVX2 is only true in `traverse_avx2`,
+                        // which runs only where the CPU has AVX2.
+                        let found = unsafe {
+                            hit_block_octet(leaf, &soa, k, g, m8, &mut best, &mut best_t)
+                        };
+                        if ANY_HIT {
+                            live &= !found;
+                        }
+                    }
+                }
                 while rays_in != 0 {
                     let r = rays_in.trailing_zeros() as usize;
                     rays_in &= rays_in - 1;
@@ -978,6 +1146,113 @@ mod tests {
             }
         }
         assert!(hits > 3000 && misses > 1000, "{hits} hits, {misses} misses");
+    }
+
+    /// The octet triangle test gives each ray `wide::hit_block_f32`'s
+    /// answer to the bit (which triangle, t, barycentrics), over blocks
+    /// with empty lanes, degenerate and edge-sharing triangles, rays on
+    /// every axis order and limits that cut hits off.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn octet_triangle_test_matches_the_block_test() {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            eprintln!("skipped: this CPU has no AVX2, so the octet test never runs");
+            return;
+        }
+        let mut next = uniform(41);
+        let (mut hits, mut misses, mut octets) = (0, 0, 0);
+        for b in 0..3000 {
+            let mut corners = [[Vec3::ZERO; 3]; 4];
+            for j in 0..4 {
+                let mut tri = [0; 3].map(|_| Vec3::new(next(), next(), next() - 3.0));
+                match (b + j) % 7 {
+                    // Degenerate: two corners the same, or all in a line.
+                    0 => tri[1] = tri[0],
+                    1 => tri[2] = tri[0] + (tri[1] - tri[0]) * 0.5,
+                    // An edge shared with the triangle before.
+                    2 if j > 0 => [tri[0], tri[1]] = [corners[j - 1][1], corners[j - 1][2]],
+                    _ => {}
+                }
+                corners[j] = tri;
+            }
+            let used = 1 + b % 4;
+            let block = wide::LeafBlock {
+                p: std::array::from_fn(|axis| {
+                    std::array::from_fn(|corner| {
+                        Vec4::from_array(std::array::from_fn(|j| corners[j][corner][axis]))
+                    })
+                }),
+                prims: std::array::from_fn(|j| if j < used { 10 + j as u32 } else { wide::NONE }),
+            };
+            // Rays aimed at the triangles, mostly along one axis so that
+            // octets share an axis order; every few packets a mixed one.
+            let axis = b % 3;
+            let rays: [Ray<f32>; WIDTH] = std::array::from_fn(|r| {
+                let tri = corners[r % used];
+                let (u, v) = (next().abs(), next().abs());
+                let target = tri[0] + (tri[1] - tri[0]) * u * 0.7 + (tri[2] - tri[0]) * v * 0.7;
+                let mut d = Vec3::new(next(), next(), next()) * 0.3;
+                d[axis] = if b % 2 == 0 { 1.0 } else { -1.0 };
+                if b % 11 == 5 {
+                    d = Vec3::new(next(), next(), next());
+                }
+                let o = target - d * (2.0 + next().abs());
+                make_ray::<f32>(o, d.normalize(), 0.0)
+            });
+            let soa = Soa::new(&rays);
+            let limit: [f32; WIDTH] = std::array::from_fn(|_| {
+                if next() > -0.3 {
+                    f32::MAX
+                } else {
+                    next().abs() * 3.0
+                }
+            });
+            for (g, k) in soa.k.iter().enumerate() {
+                let Some(k) = *k else { continue };
+                octets += 1;
+                let m8 = (next().to_bits() >> 3 | 0x11) & 255;
+                let mut best = [Hit {
+                    t: 0.0,
+                    prim: NO_HIT,
+                    b1: 0.0,
+                    b2: 0.0,
+                }; WIDTH];
+                let mut best_t = Lanes(limit);
+                for (r, h) in best.iter_mut().enumerate() {
+                    h.t = limit[r];
+                }
+                // SAFETY: the CPU has AVX2, checked above.
+                let found =
+                    unsafe { hit_block_octet(&block, &soa, k, g, m8, &mut best, &mut best_t) };
+                for i in 0..8 {
+                    let r = 8 * g + i;
+                    let want = if m8 & 1 << i == 0 {
+                        None
+                    } else {
+                        wide::hit_block_f32(&rays[r], &block, limit[r])
+                    };
+                    assert_eq!(found >> r & 1 == 1, want.is_some(), "block {b} ray {r}");
+                    match want {
+                        Some((j, t, b1, b2)) => {
+                            hits += 1;
+                            let h = best[r];
+                            assert_eq!(h.prim, block.prims[j], "block {b} ray {r}");
+                            let got = [h.t, h.b1, h.b2, best_t.0[r]].map(f32::to_bits);
+                            assert_eq!(got, [t, b1, b2, t].map(f32::to_bits), "block {b} ray {r}");
+                        }
+                        None => {
+                            misses += 1;
+                            assert_eq!(best[r].prim, NO_HIT, "block {b} ray {r}");
+                            assert_eq!(best_t.0[r].to_bits(), limit[r].to_bits());
+                        }
+                    }
+                }
+            }
+        }
+        assert!(
+            hits > 20_000 && misses > 20_000 && octets > 8_000,
+            "{hits} hits, {misses} misses, {octets} octets"
+        );
     }
 
     /// Every field of a ray, as bits.
