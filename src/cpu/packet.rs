@@ -336,13 +336,15 @@ fn hit_block_octet(
 ) -> u32 {
     use std::arch::x86_64::*;
     let [kx, ky, kz] = k;
-    let mut t_out = Lanes([0.0; WIDTH]);
-    let mut b1_out = Lanes([0.0; WIDTH]);
-    let mut b2_out = Lanes([0.0; WIDTH]);
+    // The octet's nearest hits, lane i for ray 8g + i.
+    let mut t_out = [0.0f32; 8];
+    let mut b1_out = [0.0f32; 8];
+    let mut b2_out = [0.0f32; 8];
     let mut which = [0i32; 8];
     // SAFETY: `Lanes` is 32-byte aligned and holds `WIDTH` f32, a multiple
-    // of eight, as the aligned loads and stores at every eighth one need;
-    // `which` is written unaligned; the rest is arithmetic on registers.
+    // of eight, as the aligned loads at every eighth one need; the outputs
+    // are eight lanes each, written unaligned; the rest is arithmetic on
+    // registers.
     let found = unsafe {
         let load = |l: &Lanes| _mm256_load_ps(l.0.as_ptr().add(8 * g));
         let (ox, oy, oz) = (load(&soa.o[kx]), load(&soa.o[ky]), load(&soa.o[kz]));
@@ -419,9 +421,9 @@ fn hit_block_octet(
         }
         let found = !(_mm256_movemask_ps(_mm256_castsi256_ps(run_k)) as u32) & m8;
         if found != 0 {
-            _mm256_store_ps(t_out.0.as_mut_ptr().add(8 * g), run_t);
-            _mm256_store_ps(b1_out.0.as_mut_ptr().add(8 * g), run_b1);
-            _mm256_store_ps(b2_out.0.as_mut_ptr().add(8 * g), run_b2);
+            _mm256_storeu_ps(t_out.as_mut_ptr(), run_t);
+            _mm256_storeu_ps(b1_out.as_mut_ptr(), run_b1);
+            _mm256_storeu_ps(b2_out.as_mut_ptr(), run_b2);
             _mm256_storeu_si256(which.as_mut_ptr().cast(), run_k);
         }
         found
@@ -432,12 +434,12 @@ fn hit_block_octet(
         each &= each - 1;
         let r = 8 * g + i;
         best[r] = Hit {
-            t: t_out.0[r],
+            t: t_out[i],
             prim: block.prims[which[i] as usize],
-            b1: b1_out.0[r],
-            b2: b2_out.0[r],
+            b1: b1_out[i],
+            b2: b2_out[i],
         };
-        best_t.0[r] = t_out.0[r];
+        best_t.0[r] = t_out[i];
     }
     found << (8 * g)
 }
