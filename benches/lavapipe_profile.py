@@ -6,9 +6,11 @@ runs of the shader cannot separate changes under about 15%. Instruction
 counts do not drift: this runs one `glint render --backend gpu` under
 callgrind (one lavapipe thread), with llvmpipe printing the shader's
 machine code (`GALLIVM_DEBUG=asm`, shader cache off so that it compiles),
-and joins callgrind's count per instruction address with that code. The
-JIT function is the one `???` symbol with the most instructions; its
-addresses are offsets into the printed `cs_co_variant`.
+and joins callgrind's count per instruction address with that code: the
+unnamed (`???`) code with the most instructions is placed on the printed
+function at the one load address where every counted address starts an
+instruction (llvmpipe prints at most 96 KB of a function; what lies past
+that is counted but not classified).
 
 Instructions that run the same number of times form one class: a loop
 body's iterations (a node visit, a primitive test) or a once-per-batch
@@ -66,7 +68,8 @@ def printed_functions(log):
 
 
 def counts(path):
-    """Per JIT function (unnamed, `???`): address -> instructions run."""
+    """Per JIT function (unnamed, `???`), most instructions first:
+    address -> instructions run."""
     names, per_fn = {}, collections.defaultdict(collections.Counter)
     fn, pos, skip = None, 0, False
     for line in open(path):
@@ -98,7 +101,30 @@ def counts(path):
             per_fn[fn][pos] += int(parts[2])
     if not per_fn:
         sys.exit("callgrind saw no JIT code")
-    return max(per_fn.items(), key=lambda kv: sum(kv[1].values()))
+    return sorted(per_fn.values(), key=lambda c: -sum(c.values()))
+
+
+def locate(funcs, ir):
+    """The printed function that ran and its load address: the one base at
+    which every counted address starts one of its instructions. callgrind
+    names JIT code by the first address it entered, which need not be the
+    function's start (a coroutine resumes inside it), so the base is
+    searched: the lowest counted address is one of the instructions."""
+    found = []
+    for func, code in funcs:
+        # llvmpipe prints at most 96 KB of a function: what lies past its
+        # end cannot be checked.
+        end = max(code)
+        for offset in code:
+            base = min(ir) - offset
+            addrs = [a for a in sorted(ir) if a - base <= end]
+            probe = addrs[:: max(1, len(addrs) // 64)]
+            if all(a - base in code for a in probe) and all(a - base in code for a in addrs):
+                found.append((func, code, base))
+    if not found:
+        sys.exit("no printed function matches the counted addresses")
+    # The biggest, as a short one could match by chance.
+    return max(found, key=lambda f: len(f[1]))
 
 
 def main():
@@ -110,20 +136,24 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         out, log = run(args.glint, args.scene, tmp)
         funcs = printed_functions(log)
-        name, ir = counts(out)
-    base = int(name, 16)
+        jit = counts(out)
+    ir = jit[0]
+    func, code, base = locate(funcs, ir)
+    # The same function entered elsewhere shows as another `???`.
+    end = base + max(code) + 64 * 1024
+    for more in jit[1:]:
+        if all(a - base in code for a in more if a - base <= max(code)) and max(more) < end:
+            ir.update(more)
     total = sum(ir.values())
-    # The function that ran: every counted address starts one of its
-    # instructions (the biggest such, as a short one can match by chance).
-    matching = [(f, c) for f, c in funcs if all(a - base in c for a in ir)]
-    if not matching:
-        sys.exit("no printed function matches the counted addresses")
-    func, code = max(matching, key=lambda fc: len(fc[1]))
     classes = collections.defaultdict(list)
+    unlisted = 0
     for a, n in ir.items():
         if n:
-            classes[n].append(code[a - base])
-    print(f"{func}: {total:,} instructions run, {len(code):,} in its code")
+            classes[n].append(code.get(a - base, ""))
+            unlisted += n if a - base not in code else 0
+    print(f"{func}: {total:,} instructions run, {len(code):,} in its printed code")
+    if unlisted:
+        print(f"({unlisted:,} of them past the printed 96 KB: counted, not classified)")
     print("| runs | instructions | share | gathered words | stack-frame moves | blends |")
     print("|---:|---:|---:|---:|---:|---:|")
     ranked = sorted(classes.items(), key=lambda kv: -kv[0] * len(kv[1]))
