@@ -68,17 +68,23 @@ def printed_functions(log):
 
 
 def counts(path):
-    """Per JIT function (unnamed, `???`), most instructions first:
-    address -> instructions run."""
-    names, per_fn = {}, collections.defaultdict(collections.Counter)
-    fn, pos, skip = None, 0, False
+    """The JIT code (object `???`) that ran the most instructions: address
+    -> instructions run."""
+    objects, names = {}, {}
+    per_fn = collections.defaultdict(collections.Counter)
+    jit, fn, pos, skip = False, None, 0, False
     for line in open(path):
-        m = re.match(r"(c?fn)=\((\d+)\)(?: (.*))?", line)
+        # Names are given once, at first use; later lines give the id only.
+        m = re.match(r"(c?ob|c?fn)=\((\d+)\)(?: (.*))?", line)
         if m:
-            if m.group(3):
-                names[m.group(2)] = m.group(3).strip()
-            if m.group(1) == "fn":
-                fn = names.get(m.group(2), "")
+            kind, ident, name = m.groups()
+            table = objects if kind.endswith("ob") else names
+            if name:
+                table[ident] = name.strip()
+            if kind == "ob":
+                jit = objects.get(ident) == "???"
+            elif kind == "fn":
+                fn = names.get(ident) if jit else None
             continue
         if line.startswith("calls="):
             skip = True
@@ -97,11 +103,11 @@ def counts(path):
             skip = False
             continue
         # positions: instr line, then the Ir count.
-        if fn.startswith("0x") and len(parts) > 2:
+        if fn and len(parts) > 2:
             per_fn[fn][pos] += int(parts[2])
     if not per_fn:
         sys.exit("callgrind saw no JIT code")
-    return sorted(per_fn.values(), key=lambda c: -sum(c.values()))
+    return max(per_fn.values(), key=lambda c: sum(c.values()))
 
 
 def locate(funcs, ir):
@@ -110,16 +116,17 @@ def locate(funcs, ir):
     names JIT code by the first address it entered, which need not be the
     function's start (a coroutine resumes inside it), so the base is
     searched: the lowest counted address is one of the instructions."""
+    addrs = sorted(ir)
     found = []
     for func, code in funcs:
         # llvmpipe prints at most 96 KB of a function: what lies past its
         # end cannot be checked.
         end = max(code)
         for offset in code:
-            base = min(ir) - offset
-            addrs = [a for a in sorted(ir) if a - base <= end]
-            probe = addrs[:: max(1, len(addrs) // 64)]
-            if all(a - base in code for a in probe) and all(a - base in code for a in addrs):
+            base = addrs[0] - offset
+            listed = [a for a in addrs if a - base <= end]
+            probe = listed[:: max(1, len(listed) // 64)]
+            if all(a - base in code for a in probe) and all(a - base in code for a in listed):
                 found.append((func, code, base))
     if not found:
         sys.exit("no printed function matches the counted addresses")
@@ -136,14 +143,8 @@ def main():
     with tempfile.TemporaryDirectory() as tmp:
         out, log = run(args.glint, args.scene, tmp)
         funcs = printed_functions(log)
-        jit = counts(out)
-    ir = jit[0]
+        ir = counts(out)
     func, code, base = locate(funcs, ir)
-    # The same function entered elsewhere shows as another `???`.
-    end = base + max(code) + 64 * 1024
-    for more in jit[1:]:
-        if all(a - base in code for a in more if a - base <= max(code)) and max(more) < end:
-            ir.update(more)
     total = sum(ir.values())
     classes = collections.defaultdict(list)
     unlisted = 0
@@ -153,7 +154,8 @@ def main():
             unlisted += n if a - base not in code else 0
     print(f"{func}: {total:,} instructions run, {len(code):,} in its printed code")
     if unlisted:
-        print(f"({unlisted:,} of them past the printed 96 KB: counted, not classified)")
+        print(f"({unlisted:,} of them past the printed 96 KB: in the classes by run count, "
+              "not in the columns of instruction kinds)")
     print("| runs | instructions | share | gathered words | stack-frame moves | blends |")
     print("|---:|---:|---:|---:|---:|---:|")
     ranked = sorted(classes.items(), key=lambda kv: -kv[0] * len(kv[1]))
