@@ -11,58 +11,68 @@ const POW10: [f64; 23] = [
 /// The number `text` spells, as Rust's `f64` parser reads it (the same
 /// value, bit for bit), or None where that parser would fail.
 ///
-/// Clinger's fast path first: when the digits form an integer m below 2^53
-/// and the decimal exponent e lies within ±22, both m and 10^|e| are exact
-/// in f64, so one correctly rounded multiplication or division gives the
-/// correctly rounded value, which is what the standard parser returns.
-/// Everything else (more digits, larger exponents, `inf`, `nan`, errors)
-/// goes to the standard parser, which needs the bytes as UTF-8 first.
+/// Clinger's fast path first (`parse_prefix`); everything else (more
+/// digits, larger exponents, `inf`, `nan`, errors) goes to the standard
+/// parser, which needs the bytes as UTF-8 first.
 pub fn parse_f64(text: &[u8]) -> Option<f64> {
-    fast_path(text).or_else(|| std::str::from_utf8(text).ok()?.parse().ok())
+    match parse_prefix(text) {
+        Some((value, len)) if len == text.len() => Some(value),
+        _ => std::str::from_utf8(text).ok()?.parse().ok(),
+    }
 }
 
-fn fast_path(text: &[u8]) -> Option<f64> {
-    let (negative, mut rest) = match text.split_first()? {
-        (b'-', r) => (true, r),
-        (b'+', r) => (false, r),
-        _ => (false, text),
+/// The decimal number at the start of `text` and how many bytes it takes,
+/// when Clinger's fast path gives it exactly: at most 19 digits (so the
+/// integer m they form cannot overflow), m below 2^53 and the decimal
+/// exponent e within ±22. Then m and 10^|e| are exact in f64, so one
+/// correctly rounded multiplication or division gives the correctly
+/// rounded value, which is what the standard parser returns for the same
+/// bytes. None otherwise (the caller falls back to `parse_f64`'s standard
+/// parser). Scene files are almost all such numbers, and the parser reads
+/// them here straight from the input, without first finding where the
+/// token ends.
+pub fn parse_prefix(text: &[u8]) -> Option<(f64, usize)> {
+    let (negative, mut i) = match text.first()? {
+        b'-' => (true, 1),
+        b'+' => (false, 1),
+        _ => (false, 0),
     };
     let mut mantissa: u64 = 0;
-    let mut digits = 0u32;
+    let whole = take_digits(text, &mut i, &mut mantissa);
     let mut exponent: i32 = 0;
-    let whole = take_digits(&mut rest, &mut mantissa, &mut digits);
-    let mut any = whole > 0;
-    if let Some((b'.', r)) = rest.split_first() {
-        rest = r;
-        let fraction = take_digits(&mut rest, &mut mantissa, &mut digits);
-        exponent -= fraction as i32;
-        any |= fraction > 0;
+    let mut digits = whole;
+    if text.get(i) == Some(&b'.') {
+        i += 1;
+        let fraction = take_digits(text, &mut i, &mut mantissa);
+        exponent = -(fraction as i32);
+        digits += fraction;
     }
-    if !any || digits > 15 {
+    if digits == 0 || digits > 19 {
         return None;
     }
-    if let Some((b'e' | b'E', r)) = rest.split_first() {
-        let (sign, mut r) = match r.split_first()? {
-            (b'-', r) => (-1, r),
-            (b'+', r) => (1, r),
-            _ => (1, r),
-        };
-        let mut e: i32 = 0;
-        let start = r.len();
-        while let Some((&c, rr)) = r.split_first() {
-            if !c.is_ascii_digit() || e > 10_000 {
-                return None;
+    if let Some(b'e' | b'E') = text.get(i) {
+        i += 1;
+        let sign = match text.get(i) {
+            Some(b'-') => {
+                i += 1;
+                -1
             }
-            e = e * 10 + i32::from(c - b'0');
-            r = rr;
-        }
-        if r.len() == start {
+            Some(b'+') => {
+                i += 1;
+                1
+            }
+            _ => 1,
+        };
+        let mut e: u64 = 0;
+        let n = take_digits(text, &mut i, &mut e);
+        // Past four digits the exponent is out of the fast path's range
+        // anyway; the standard parser sorts it out.
+        if n == 0 || n > 4 {
             return None;
         }
-        exponent += sign * e;
-        rest = r;
+        exponent += sign * e as i32;
     }
-    if !rest.is_empty() || mantissa >= 1 << 53 {
+    if mantissa >= 1 << 53 {
         return None;
     }
     let m = mantissa as f64;
@@ -71,26 +81,22 @@ fn fast_path(text: &[u8]) -> Option<f64> {
     } else {
         m / *POW10.get(exponent.unsigned_abs() as usize)?
     };
-    Some(if negative { -value } else { value })
+    Some((if negative { -value } else { value }, i))
 }
 
-/// Reads the digits at the start of `rest` into `mantissa` (wrapping: the
-/// caller gives up past 15 significant `digits`); returns how many.
-fn take_digits(rest: &mut &[u8], mantissa: &mut u64, digits: &mut u32) -> usize {
-    let mut n = 0;
-    while let Some((&c, r)) = rest.split_first() {
-        if !c.is_ascii_digit() {
+/// Reads the digits of `text` from `*i` on into `value` (wrapping: callers
+/// give up past 19 of them); returns how many.
+fn take_digits(text: &[u8], i: &mut usize, value: &mut u64) -> usize {
+    let start = *i;
+    while let Some(&c) = text.get(*i) {
+        let d = c.wrapping_sub(b'0');
+        if d > 9 {
             break;
         }
-        // Leading zeros are not significant digits.
-        if *mantissa != 0 || c != b'0' {
-            *digits += 1;
-        }
-        *mantissa = mantissa.wrapping_mul(10).wrapping_add(u64::from(c - b'0'));
-        *rest = r;
-        n += 1;
+        *value = value.wrapping_mul(10).wrapping_add(u64::from(d));
+        *i += 1;
     }
-    n
+    *i - start
 }
 
 #[cfg(test)]
@@ -159,6 +165,25 @@ mod tests {
                 parse_f64(s.as_bytes()),
                 std_parse(s)
             );
+        }
+    }
+
+    #[test]
+    fn a_prefix_is_read_up_to_where_the_number_ends() {
+        assert_eq!(parse_prefix(b"-20.5 nor:"), Some((-20.5, 5)));
+        assert_eq!(parse_prefix(b".44\n"), Some((0.44, 3)));
+        assert_eq!(parse_prefix(b"1e-16 "), Some((1e-16, 5)));
+        // The caller sees the number does not end at whitespace.
+        assert_eq!(parse_prefix(b"1x"), Some((1.0, 1)));
+        for s in [
+            "1e ",
+            "1e+ ",
+            ". ",
+            "- ",
+            "12345678901234567890 ",
+            "1e99999 ",
+        ] {
+            assert_eq!(parse_prefix(s.as_bytes()), None, "{s:?}");
         }
     }
 

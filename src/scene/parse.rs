@@ -135,37 +135,59 @@ pub fn parse_scene(src: &[u8], path: &str) -> Result<Scene, ParseError> {
     }
 }
 
-/// Bytes read at a time by `parse_reader`.
+/// Bytes read at a time by `parse_reader`, for each thread that parses.
 const CHUNK: usize = 1 << 20;
 /// An object starts only with this much input after it (or the end of the
 /// file), so one rarely straddles two reads; one that does (a block padded
 /// with this much whitespace) is parsed again from its start with more.
 const LOOKAHEAD: usize = 1 << 16;
 
-/// Parses a scene as it is read, holding a megabyte or so of the text at a
-/// time instead of the whole file: a 700 MB scene would otherwise be
-/// resident beside everything parsed from it. Messages are those of
-/// `parse_scene` on the whole text; `path` names the input in them.
-pub fn parse_reader(reader: impl Read, path: &Path) -> Result<Scene, Error> {
-    parse_windows(reader, path, CHUNK, LOOKAHEAD)
-}
-
-/// `parse_reader` reading `chunk` bytes at a time and starting an object
-/// only with `lookahead` bytes after it (tests try tiny ones).
-fn parse_windows(
-    mut reader: impl Read,
-    path: &Path,
+/// How `parse_windows` reads: `chunk` bytes a thread at a time, starting
+/// an object only with `lookahead` bytes after it, on `threads` threads
+/// (tests try tiny windows and several threads).
+#[derive(Clone, Copy, Debug)]
+struct Windows {
     chunk: usize,
     lookahead: usize,
-) -> Result<Scene, Error> {
+    threads: usize,
+}
+
+/// Parses a scene as it is read, holding a few megabytes of the text at a
+/// time instead of the whole file: a 700 MB scene would otherwise be
+/// resident beside everything parsed from it. Uses the threads of rayon's
+/// pool (`--threads`): each window is cut at object starts into one part a
+/// thread, and every part but the first is parsed ahead, then kept only
+/// where the parse before it ends exactly at its start. The scene and every
+/// message are those of `parse_scene` on the whole text; `path` names the
+/// input in them.
+pub fn parse_reader(reader: impl Read, path: &Path) -> Result<Scene, Error> {
+    let windows = Windows {
+        chunk: CHUNK,
+        lookahead: LOOKAHEAD,
+        threads: rayon::current_num_threads().clamp(1, MAX_PARSE_THREADS),
+    };
+    parse_windows(reader, path, windows)
+}
+
+/// More threads would hold more of the file at once for little gain:
+/// parsing a window is already faster than reading most disks.
+const MAX_PARSE_THREADS: usize = 8;
+
+fn parse_windows(mut reader: impl Read, path: &Path, windows: Windows) -> Result<Scene, Error> {
+    let Windows {
+        chunk,
+        lookahead,
+        threads,
+    } = windows;
     let name = path.display().to_string();
     let io_error = |error| Error::ReadScene {
         path: path.to_path_buf(),
         error,
     };
-    let mut buf: Vec<u8> = Vec::with_capacity(chunk + lookahead);
+    let round = chunk * threads;
+    let mut buf: Vec<u8> = Vec::with_capacity(round + lookahead);
     let mut base = 0;
-    let mut want = chunk;
+    let mut want = round;
     let mut at_eof = false;
     let mut state = State::start();
     loop {
@@ -178,10 +200,45 @@ fn parse_windows(
                 Err(e) => return Err(io_error(e)),
             }
         }
-        let mut parser = Parser::new(&buf, base, at_eof, &name, state);
-        parser.lookahead = lookahead;
-        let resume = parser.run()?;
-        state = parser.state;
+        let limit = if at_eof {
+            buf.len()
+        } else {
+            buf.len().saturating_sub(lookahead)
+        };
+        let splits = object_starts(&buf[..limit], chunk, threads);
+        let mut ahead: Vec<Option<Ahead>> = splits.iter().map(|_| None).collect();
+        let result = if splits.is_empty() {
+            let mut parser = Parser::new(&buf, base, at_eof, &name, state);
+            parser.lookahead = lookahead;
+            parser.run().map(|r| (r, parser.state))
+        } else {
+            let (buf, name, splits) = (&buf[..], &name[..], &splits[..]);
+            rayon::scope(|scope| {
+                for (k, slot) in ahead.iter_mut().enumerate() {
+                    let (from, stop) = (splits[k], splits.get(k + 1).copied());
+                    scope.spawn(move |_| {
+                        *slot = Some(parse_ahead(buf, from, stop, base, at_eof, lookahead, name));
+                    });
+                }
+                let mut parser = Parser::new(buf, base, at_eof, name, state);
+                parser.lookahead = lookahead;
+                parser.stop_at = Some(splits[0]);
+                parser.run().map(|r| (r, parser.state))
+            })
+        };
+        let (mut resume, new_state) = result?;
+        state = new_state;
+        // Each part parsed ahead joins where the parse so far ended exactly
+        // at its start; the first that does not is parsed again in order.
+        for (ahead, &from) in ahead.into_iter().zip(&splits) {
+            let Some(ahead) = ahead else { break };
+            if resume != Some(from) || !state.join(ahead.state) {
+                break;
+            }
+            resume = Some(from + ahead.end);
+            #[cfg(test)]
+            tests::JOINED.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        }
         let Some(pos) = resume else {
             return Ok(state.scene);
         };
@@ -201,10 +258,90 @@ fn parse_windows(
         // Nothing consumed from a full window: one object is longer than
         // it, so read on until it fits.
         want = if pos == 0 {
-            2 * buf.len().max(chunk)
+            2 * buf.len().max(round)
         } else {
-            chunk
+            round
         };
+    }
+}
+
+/// Where the parts of a window after the first begin: for each thread but
+/// the first, the first line at or after its share of `text` that starts
+/// with `sphere`, `triangle` or `light`. Only a guess (such a word could
+/// be a mesh file's name), which the parse of the part before confirms.
+fn object_starts(text: &[u8], chunk: usize, threads: usize) -> Vec<usize> {
+    let mut starts = Vec::new();
+    let mut from = 0;
+    for k in 1..threads {
+        from = from.max(k * chunk);
+        let Some(at) = next_object_line(text, from) else {
+            break;
+        };
+        starts.push(at);
+        from = at + 1;
+    }
+    starts
+}
+
+fn next_object_line(text: &[u8], from: usize) -> Option<usize> {
+    let mut i = from;
+    loop {
+        i += text.get(i..)?.iter().position(|&b| b == b'\n')? + 1;
+        let mut j = i;
+        while j < text.len() && matches!(text[j], b' ' | b'\t' | b'\r') {
+            j += 1;
+        }
+        let word_end = text[j..]
+            .iter()
+            .position(u8::is_ascii_whitespace)
+            .map(|n| j + n)?;
+        let word = &text[j..word_end];
+        if ["sphere", "triangle", "light"]
+            .iter()
+            .any(|w| word.eq_ignore_ascii_case(w.as_bytes()))
+        {
+            return Some(j);
+        }
+    }
+}
+
+/// A part of a window parsed ahead of the parse before it.
+struct Ahead {
+    /// What it parsed, its lines counted from its start.
+    state: State,
+    /// Where it stopped, from its start.
+    end: usize,
+}
+
+/// Parses `buf[from..]` ahead, as if an object began there, until `stop`:
+/// spheres, triangles and lights only, each kept only if it parses without
+/// an error or a warning. Whatever else comes first (a setting, a camera,
+/// a mesh, a mistake) ends the part there, for the parse in order to do
+/// with its own state and messages.
+fn parse_ahead(
+    buf: &[u8],
+    from: usize,
+    stop: Option<usize>,
+    base: usize,
+    at_eof: bool,
+    lookahead: usize,
+    path: &str,
+) -> Ahead {
+    let state = State {
+        // Counted when joined.
+        declared: Some(u64::MAX),
+        line: 1,
+        line_start: base + from,
+        ..State::default()
+    };
+    let mut parser = Parser::new(&buf[from..], base + from, at_eof, path, state);
+    parser.lookahead = lookahead;
+    parser.stop_at = stop.map(|s| s - from);
+    parser.ahead = true;
+    let end = parser.run_ahead();
+    Ahead {
+        state: parser.state,
+        end,
     }
 }
 
@@ -252,6 +389,42 @@ impl State {
             ..State::default()
         }
     }
+
+    /// Appends a part parsed ahead (`parse_ahead`) that begins where this
+    /// state ends, as if parsed in order: its materials join the table in
+    /// the order their corners name them, its lines follow these. False
+    /// (and nothing joined) where its objects would pass the declared
+    /// count, whose message the parse in order gives.
+    fn join(&mut self, ahead: State) -> bool {
+        let declared = self.declared.unwrap_or(0);
+        if self.found + ahead.found > declared {
+            return false;
+        }
+        self.found += ahead.found;
+        let Scene {
+            spheres,
+            mut triangles,
+            materials,
+            lights,
+            ..
+        } = ahead.scene;
+        let mut ids: Vec<Option<u32>> = vec![None; materials.len()];
+        for v in triangles.iter_mut().flat_map(|t| t.vertices.iter_mut()) {
+            let local = v.material as usize;
+            v.material = *ids[local].get_or_insert_with(|| {
+                self.material_ids
+                    .id(&mut self.scene.materials, materials[local])
+            });
+        }
+        self.scene.spheres.extend(spheres);
+        self.scene.triangles.extend(triangles);
+        self.scene.lights.extend(lights);
+        if ahead.line > 1 {
+            self.line += ahead.line - 1;
+            self.line_start = ahead.line_start;
+        }
+        true
+    }
 }
 
 struct Parser<'a> {
@@ -267,6 +440,12 @@ struct Parser<'a> {
     /// Input an object needs after its start before it is begun, when the
     /// window does not reach the end.
     lookahead: usize,
+    /// Where the next part of the window begins (parsed by another thread):
+    /// no object is begun at or past it.
+    stop_at: Option<usize>,
+    /// Parsing ahead (`parse_ahead`): a warning spoils the object.
+    ahead: bool,
+    spoiled: bool,
     path: &'a str,
     pos: usize,
     /// Also the line position (`State::line`, `State::line_start`).
@@ -292,6 +471,9 @@ impl<'a> Parser<'a> {
             at_eof,
             starved: false,
             lookahead: LOOKAHEAD,
+            stop_at: None,
+            ahead: false,
+            spoiled: false,
             path,
             pos: 0,
             state,
@@ -308,6 +490,9 @@ impl<'a> Parser<'a> {
             }
         }
         loop {
+            if self.at_stop() {
+                return Ok(Some(self.pos));
+            }
             if !self.at_eof && self.src.len() - self.pos < self.lookahead {
                 return Ok(Some(self.pos));
             }
@@ -330,6 +515,41 @@ impl<'a> Parser<'a> {
             ));
         }
         Ok(None)
+    }
+
+    /// Whether the next token is at or past `stop_at`.
+    fn at_stop(&mut self) -> bool {
+        let Some(stop) = self.stop_at else {
+            return false;
+        };
+        self.skip_space();
+        self.pos >= stop
+    }
+
+    /// `run` for a part parsed ahead (`parse_ahead`): where it stopped.
+    fn run_ahead(&mut self) -> usize {
+        loop {
+            if self.at_stop() || (!self.at_eof && self.src.len() - self.pos < self.lookahead) {
+                return self.pos;
+            }
+            let mark = self.mark();
+            let simple = self
+                .next_token()
+                .is_some_and(|t| t.is("sphere") || t.is("triangle") || t.is("light"));
+            self.undo(mark);
+            self.starved = false;
+            if !simple {
+                return self.pos;
+            }
+            let mark = self.mark();
+            match self.resumable(Self::object) {
+                Ok(Some(true)) if !self.spoiled => {}
+                _ => {
+                    self.undo(mark);
+                    return self.pos;
+                }
+            }
+        }
     }
 
     /// Where the parse is: window offset, line and its absolute start.
@@ -768,6 +988,19 @@ impl<'a> Parser<'a> {
     }
 
     fn tag(&mut self, tag: &str) -> PResult<Token<'a>> {
+        // Most tags are as expected: compared in place, without finding
+        // the token's end first.
+        self.skip_space();
+        let rest = &self.src[self.pos..];
+        let n = tag.len();
+        if rest.len() > n
+            && rest[n].is_ascii_whitespace()
+            && rest[..n].eq_ignore_ascii_case(tag.as_bytes())
+        {
+            let tok = self.token_at(n);
+            self.pos += n;
+            return Ok(tok);
+        }
         let tok = self.require_with(|| format!("`{tag}`"))?;
         if tok.is(tag) {
             Ok(tok)
@@ -784,6 +1017,19 @@ impl<'a> Parser<'a> {
     }
 
     fn number(&mut self, what: &str) -> PResult<(f64, Token<'a>)> {
+        // The fast path reads most numbers in place; what it cannot read,
+        // or a number not followed by whitespace, goes the long way (which
+        // also gives the messages).
+        self.skip_space();
+        let rest = &self.src[self.pos..];
+        if let Some((value, n)) = super::number::parse_prefix(rest) {
+            let ends = rest.get(n).map_or(self.at_eof, u8::is_ascii_whitespace);
+            if ends && value.abs() <= f64::from(f32::MAX) {
+                let tok = self.token_at(n);
+                self.pos += n;
+                return Ok((value, tok));
+            }
+        }
         let tok = self.require_with(|| format!("a number ({what})"))?;
         let value = super::number::parse_f64(tok.text);
         match value {
@@ -821,7 +1067,7 @@ impl<'a> Parser<'a> {
         }
     }
 
-    fn next_token(&mut self) -> Option<Token<'a>> {
+    fn skip_space(&mut self) {
         while self.pos < self.src.len() && self.src[self.pos].is_ascii_whitespace() {
             if self.src[self.pos] == b'\n' {
                 self.state.line += 1;
@@ -829,6 +1075,10 @@ impl<'a> Parser<'a> {
             }
             self.pos += 1;
         }
+    }
+
+    fn next_token(&mut self) -> Option<Token<'a>> {
+        self.skip_space();
         let start = self.pos;
         while self.pos < self.src.len() && !self.src[self.pos].is_ascii_whitespace() {
             self.pos += 1;
@@ -850,6 +1100,16 @@ impl<'a> Parser<'a> {
         })
     }
 
+    /// The token of `len` bytes at the parse position.
+    fn token_at(&self, len: usize) -> Token<'a> {
+        Token {
+            text: &self.src[self.pos..self.pos + len],
+            offset: self.pos,
+            line: self.state.line,
+            line_start: self.state.line_start,
+        }
+    }
+
     /// A zero-width token at the end of the input, for end-of-file errors.
     fn end_token(&mut self) -> Token<'a> {
         while self.next_token().is_some() {}
@@ -869,6 +1129,7 @@ impl<'a> Parser<'a> {
     /// and counts the rest, so a file that repeats one mistake a million
     /// times costs a counter, not a million diagnostics.
     fn warn(&mut self, d: Diagnostic) {
+        self.spoiled |= self.ahead;
         let same = self
             .state
             .scene
@@ -949,6 +1210,60 @@ const SOURCE_WINDOW: usize = 60;
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::sync::atomic::{AtomicUsize, Ordering};
+
+    /// Parts parsed ahead and joined, over all tests.
+    pub(super) static JOINED: AtomicUsize = AtomicUsize::new(0);
+
+    /// A scene whose parts parsed ahead meet everything that ends one: a
+    /// setting, warnings, materials first named in a later part, objects on
+    /// one line and on many, mixed case.
+    fn mixed_scene(objects: usize) -> Vec<u8> {
+        let mut text = format!("{objects}\namb: .1 .1 .1\n");
+        for i in 0..objects {
+            if i == objects / 2 {
+                text += "reflect: 2\n";
+            }
+            let m = |k: usize| format!("dif: .{} .5 .5 spe: 0 0 0 shi: {}", (i + k) % 7, i % 3);
+            let normal = if i % 37 == 5 { "0 0 0" } else { "0 0 1" };
+            match i % 5 {
+                0 => text += &format!("sphere pos: {i} 0 -3 rad: .5 {}\n", m(0)),
+                1 => text += &format!("LIGHT\npos: 0 {i} 0\ncol: 1 1 1\n"),
+                _ => {
+                    text += if i % 2 == 0 {
+                        "triangle\n"
+                    } else {
+                        "Triangle "
+                    };
+                    for k in 0..3 {
+                        text += &format!("pos: {i} {k} -5 nor: {normal} {}\n", m(k));
+                    }
+                }
+            }
+        }
+        text.into_bytes()
+    }
+
+    #[test]
+    fn parts_parsed_ahead_join_as_the_parse_in_order_reads_them() {
+        let before = JOINED.load(Ordering::Relaxed);
+        let src = mixed_scene(400);
+        let whole = parse_scene(&src, "t").unwrap();
+        assert!(whole.more_warnings > 0 && whole.settings.reflect == Some(2));
+        for threads in 2..=4 {
+            for (chunk, lookahead) in [(512, 128), (2000, 300), (97, 0)] {
+                let windows = Windows {
+                    chunk,
+                    lookahead,
+                    threads,
+                };
+                let windowed = parse_windows(&src[..], Path::new("t"), windows).unwrap();
+                assert_eq!(whole, windowed, "{windows:?}");
+            }
+        }
+        // Counted across tests running at once: at least this one's.
+        assert!(JOINED.load(Ordering::Relaxed) > before + 100);
+    }
 
     #[test]
     fn accepts_course_number_forms_and_mixed_case_tags() {
@@ -992,7 +1307,15 @@ mod tests {
 
     #[test]
     fn reading_in_windows_parses_as_the_whole_text_does() {
-        let sizes = [(1, 0), (7, 3), (64, 16), (300, 100), (4096, 1024)];
+        // Tiny windows, and several threads, each parsing a part ahead.
+        let sizes = [
+            (1, 0),
+            (7, 3),
+            (64, 16),
+            (300, 100),
+            (4096, 1024),
+            (4096, 1024),
+        ];
         for src in sources() {
             let mut corrupt = vec![src.clone()];
             // Truncated mid-way, and a bad token in the middle and near
@@ -1010,15 +1333,20 @@ mod tests {
             }
             for (k, text) in corrupt.iter().enumerate() {
                 let whole = parse_scene(text, "t").map_err(|e| e.to_string());
-                for (chunk, lookahead) in sizes {
-                    let windowed = parse_windows(&text[..], Path::new("t"), chunk, lookahead);
+                for ((chunk, lookahead), threads) in sizes.into_iter().zip([1, 2, 3, 4, 1, 2]) {
+                    let windows = Windows {
+                        chunk,
+                        lookahead,
+                        threads,
+                    };
+                    let windowed = parse_windows(&text[..], Path::new("t"), windows);
                     match (&whole, &windowed) {
-                        (Ok(a), Ok(b)) => assert_eq!(a, b, "chunk {chunk}"),
+                        (Ok(a), Ok(b)) => assert_eq!(a, b, "{windows:?}"),
                         (Err(a), Err(b)) => {
                             let b = b.to_string();
-                            assert_eq!(summary(a), summary(&b), "chunk {chunk}, case {k}");
+                            assert_eq!(summary(a), summary(&b), "{windows:?}, case {k}");
                         }
-                        _ => panic!("chunk {chunk}, case {k}: {whole:?} but {windowed:?}"),
+                        _ => panic!("{windows:?}, case {k}: {whole:?} but {windowed:?}"),
                     }
                 }
             }
@@ -1048,7 +1376,12 @@ mod tests {
             }
         }
         let failing = Failing { at: 0, limit: 45 };
-        let err = parse_windows(failing, Path::new("s.scene"), 4, 2).unwrap_err();
+        let windows = Windows {
+            chunk: 4,
+            lookahead: 2,
+            threads: 2,
+        };
+        let err = parse_windows(failing, Path::new("s.scene"), windows).unwrap_err();
         assert!(matches!(err, Error::ReadScene { .. }), "{err}");
         assert!(err.to_string().contains("s.scene"), "{err}");
     }
