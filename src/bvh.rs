@@ -11,6 +11,7 @@
 //! rounding; node boxes are unions of those, exact in f32.
 
 use glam::{DVec3, Vec3A};
+use rayon::prelude::*;
 
 use crate::info::Features;
 use crate::layout::{GpuBvhNode, BVH_MAX_DEPTH, SPHERE_BIT};
@@ -198,15 +199,17 @@ impl Bvh {
     fn build_swept_with(scene: &Scene, span: f64, parallel_min: usize) -> Bvh {
         let scale = scene.render_scale();
         let scene = &*scene.in_render_space(scale);
-        let spheres = scene.spheres.iter().enumerate().map(|(i, s)| {
+        let sphere_prim = |i: usize| {
+            let s = &scene.spheres[i];
             let bounds = widen(s.swept_bounds(span));
             Prim {
                 bounds: Box3::outward(bounds),
                 centroid: (s.center + s.velocity * (0.5 * span)).as_vec3a(),
                 reference: i as u32 | SPHERE_BIT,
             }
-        });
-        let triangles = scene.triangles.iter().enumerate().map(|(i, t)| {
+        };
+        let triangle_prim = |i: usize| {
+            let t = &scene.triangles[i];
             let bounds = if span > 0.0 && t.velocity != DVec3::ZERO {
                 widen(t.swept_bounds(span))
             } else {
@@ -217,8 +220,21 @@ impl Bvh {
                 centroid: bounds.centroid().as_vec3a(),
                 reference: i as u32,
             }
-        });
-        let mut prims: Vec<Prim> = spheres.chain(triangles).collect();
+        };
+        // Spheres, then triangles; on every thread (a fifth of a 2M-triangle
+        // build on one).
+        let spheres = scene.spheres.len();
+        let mut prims: Vec<Prim> = (0..spheres + scene.triangles.len())
+            .into_par_iter()
+            .with_min_len(PAR_CHUNK)
+            .map(|i| {
+                if i < spheres {
+                    sphere_prim(i)
+                } else {
+                    triangle_prim(i - spheres)
+                }
+            })
+            .collect();
         let mut bvh = Bvh {
             scale,
             ..Bvh::default()
@@ -244,6 +260,9 @@ impl Bvh {
 /// (tested).
 const PARALLEL_LEVELS: u32 = 5;
 const PARALLEL_MIN: usize = 4096;
+/// Primitives a thread takes at a time where one set is gathered or
+/// binned on every thread (the root and the levels just below it).
+const PAR_CHUNK: usize = 1 << 15;
 
 /// The subtree over `prims` (which start at `first` in the final order),
 /// flattened depth-first with its root at index 0 and child indices
@@ -261,7 +280,7 @@ fn build_tree(
         return (nodes, deepest);
     }
     let mut parent = node(extent.bounds, first as u32, prims.len() as u32);
-    let (mid, [left_extent, right_extent]) = split(prims, extent);
+    let (mid, [left_extent, right_extent]) = split(prims, extent, parallel_min);
     let (left, right) = prims.split_at_mut(mid);
     let ((mut nodes, left_depth), (right_nodes, right_depth)) = rayon::join(
         || build_tree(left, left_extent, first, depth + 1, parallel_min),
@@ -296,7 +315,7 @@ fn build_in_place(
     if prims.len() <= MAX_LEAF_SIZE || depth + 1 >= BVH_MAX_DEPTH {
         return depth;
     }
-    let (mid, [left_extent, right_extent]) = split(prims, extent);
+    let (mid, [left_extent, right_extent]) = split(prims, extent, usize::MAX);
     let (left, right) = prims.split_at_mut(mid);
     let left_depth = build_in_place(nodes, left, left_extent, first, depth + 1);
     let right_index = nodes.len();
@@ -337,8 +356,23 @@ impl Extent {
         }
     }
 
+    fn union(self, o: Extent) -> Extent {
+        Extent {
+            bounds: self.bounds.union(o.bounds),
+            centroids: self.centroids.union(o.centroids),
+        }
+    }
+
+    /// On every thread for a large set: unions are exact, so the same
+    /// extent in any order.
     fn of(prims: &[Prim]) -> Extent {
-        prims.iter().fold(Extent::EMPTY, Extent::add)
+        if prims.len() < 2 * PAR_CHUNK {
+            return prims.iter().fold(Extent::EMPTY, Extent::add);
+        }
+        prims
+            .par_chunks(PAR_CHUNK)
+            .map(|c| c.iter().fold(Extent::EMPTY, Extent::add))
+            .reduce(|| Extent::EMPTY, Extent::union)
     }
 }
 
@@ -348,7 +382,11 @@ impl Extent {
 /// alone was a third cheaper to build, but its trees cost 1.1-1.4x more
 /// by the SAH (sphere grid 22k: 12.36 against 8.46; table: 5.57 against
 /// 4.50) and rendered up to a fifth slower.
-fn split(prims: &mut [Prim], extent: Extent) -> (usize, [Extent; 2]) {
+///
+/// A set of at least 16 `parallel_min` primitives (the top of the tree) is
+/// binned on every thread, in chunks of up to `PAR_CHUNK`: unions and
+/// counts are exact, so the bins are the same in any order.
+fn split(prims: &mut [Prim], extent: Extent, parallel_min: usize) -> (usize, [Extent; 2]) {
     debug_assert!(prims.len() > MAX_LEAF_SIZE);
     let centroids = extent.centroids;
     let width = centroids.max - centroids.min;
@@ -373,15 +411,34 @@ fn split(prims: &mut [Prim], extent: Extent) -> (usize, [Extent; 2]) {
     // Binned on every axis the centroids spread along, in one pass.
     let spread = [0, 1, 2].map(|a| width[a] > 0.0);
     let axes = || (0..3).filter(|&a| spread[a]);
-    let mut bins = [[(Box3::EMPTY, 0usize); BIN_COUNT]; 3];
-    for p in prims.iter() {
-        let at = bins_of(p.centroid);
-        for axis in axes() {
-            let b = &mut bins[axis][at[axis]];
-            b.0 = b.0.union(p.bounds);
-            b.1 += 1;
+    type Bins = [[(Box3, usize); BIN_COUNT]; 3];
+    const EMPTY_BINS: Bins = [[(Box3::EMPTY, 0usize); BIN_COUNT]; 3];
+    let bin = |chunk: &[Prim]| {
+        let mut bins = EMPTY_BINS;
+        for p in chunk {
+            let at = bins_of(p.centroid);
+            for axis in axes() {
+                let b = &mut bins[axis][at[axis]];
+                b.0 = b.0.union(p.bounds);
+                b.1 += 1;
+            }
         }
-    }
+        bins
+    };
+    let bins = if prims.len() < parallel_min.saturating_mul(16) {
+        bin(prims)
+    } else {
+        let chunk = PAR_CHUNK.min(4 * parallel_min);
+        prims.par_chunks(chunk).map(bin).reduce(
+            || EMPTY_BINS,
+            |mut a, b| {
+                for (a, b) in a.iter_mut().flatten().zip(b.iter().flatten()) {
+                    *a = (a.0.union(b.0), a.1 + b.1);
+                }
+                a
+            },
+        )
+    };
     let mut best: Option<(f64, usize, usize)> = None;
     for axis in axes() {
         let bins = &bins[axis];

@@ -341,9 +341,19 @@ impl Scene {
 
     /// Bounds of all geometry (lights excluded); empty for an empty scene.
     pub fn bounds(&self) -> Bounds {
-        let s = self.spheres.iter().map(Sphere::bounds);
-        let t = self.triangles.iter().map(Triangle::bounds);
-        s.chain(t).fold(Bounds::EMPTY, Bounds::union)
+        use rayon::prelude::*;
+        // On every thread (unions are exact: the same box in any order).
+        let s = self
+            .spheres
+            .par_iter()
+            .with_min_len(1 << 15)
+            .map(Sphere::bounds);
+        let t = self
+            .triangles
+            .par_iter()
+            .with_min_len(1 << 15)
+            .map(Triangle::bounds);
+        s.chain(t).reduce(|| Bounds::EMPTY, Bounds::union)
     }
 
     /// Largest coordinate magnitude of the geometry (0 when there is none).
