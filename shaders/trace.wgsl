@@ -215,6 +215,8 @@ struct WideNode {
 @group(0) @binding(26) var<uniform> spheres_u: array<Sphere, 1365>;
 @group(0) @binding(27) var<uniform> triangles_u: array<Triangle, 1365>;
 @group(0) @binding(28) var<uniform> nodes_u: array<WideNode, 1024>;
+// Primitive references, four to an element.
+@group(0) @binding(29) var<uniform> prim_refs_u: array<vec4<u32>, 4096>;
 
 // Loop iterations this invocation has run (every loop counts, as drivers
 // count them), and whether any of its loops ended without its own exit.
@@ -894,7 +896,12 @@ fn traverse(ray: Ray, t_max: f32, any_hit: bool) -> Hit {
         var r = leaves.x & ~WIDE_LEAF;
         for (; li < kl && r < arrayLength(&prim_refs);) {
             work += 1u;
-            let word = prim_refs[r];
+            var word: u32;
+            if (UNIFORM_LISTS) {
+                word = prim_refs_u[r >> 2u][r & 3u];
+            } else {
+                word = prim_refs[r];
+            }
             if (hit_prim(ray, word & ~LEAF_END, &best, any_hit)) {
                 return best;
             }

@@ -192,7 +192,12 @@ pub const SPLIT_FIRST: usize = 14;
 /// their storage bindings: (storage binding, name), the uniform copy of list
 /// j at binding `UNIFORM_FIRST + j` (see "Uniform lists" in
 /// shaders/trace.wgsl).
-pub const UNIFORM_LISTS: [(usize, &str); 3] = [(2, "spheres"), (3, "triangles"), (6, "bvh nodes")];
+pub const UNIFORM_LISTS: [(usize, &str); 4] = [
+    (2, "spheres"),
+    (3, "triangles"),
+    (6, "bvh nodes"),
+    (7, "primitive references"),
+];
 /// The first binding of the uniform copies.
 pub const UNIFORM_FIRST: usize = 26;
 /// Bytes of each uniform copy: its fixed-length array in the shader
@@ -200,14 +205,27 @@ pub const UNIFORM_FIRST: usize = 26;
 /// Vulkan's guaranteed `maxUniformBufferRange`; lavapipe offers it.
 pub const UNIFORM_LIST_BYTES: u64 = 65536;
 
-/// Elements of list j of `UNIFORM_LISTS` that its uniform copy holds.
+/// Elements of list j of `UNIFORM_LISTS` in one element of its uniform
+/// copy: the references go four to a `vec4<u32>` (a uniform array's stride
+/// is a multiple of 16 bytes); the rest one to one.
+pub const fn uniform_list_packing(j: usize) -> usize {
+    if j == 3 {
+        4
+    } else {
+        1
+    }
+}
+
+/// Elements of the uniform copy of list j of `UNIFORM_LISTS` (its
+/// fixed-length array in the shader).
 pub const fn uniform_list_len(j: usize) -> u64 {
     let stride = match j {
         0 => std::mem::size_of::<GpuSphere>(),
         1 => std::mem::size_of::<GpuTriangle>(),
         2 => std::mem::size_of::<GpuWideNode>(),
-        _ => panic!("UNIFORM_LISTS has three lists"),
-    };
+        3 => std::mem::size_of::<u32>(),
+        _ => panic!("UNIFORM_LISTS has four lists"),
+    } * uniform_list_packing(j);
     UNIFORM_LIST_BYTES / stride as u64
 }
 

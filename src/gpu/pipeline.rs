@@ -88,7 +88,7 @@ impl Lists {
 
 /// Descriptor types of bindings 0.. of group 0, in the shader's order; each
 /// layout has those `Lists::bindings` names.
-pub const BINDINGS: [vk::DescriptorType; 29] = [
+pub const BINDINGS: [vk::DescriptorType; 30] = [
     vk::DescriptorType::UNIFORM_BUFFER, // frame
     vk::DescriptorType::UNIFORM_BUFFER, // tile
     vk::DescriptorType::STORAGE_BUFFER, // spheres
@@ -117,7 +117,9 @@ pub const BINDINGS: [vk::DescriptorType; 29] = [
     vk::DescriptorType::STORAGE_BUFFER,
     vk::DescriptorType::STORAGE_BUFFER,
     vk::DescriptorType::STORAGE_BUFFER,
-    // Uniform copies of spheres, triangles and nodes (layout::UNIFORM_LISTS).
+    // Uniform copies of spheres, triangles, nodes and primitive references
+    // (layout::UNIFORM_LISTS).
+    vk::DescriptorType::UNIFORM_BUFFER,
     vk::DescriptorType::UNIFORM_BUFFER,
     vk::DescriptorType::UNIFORM_BUFFER,
     vk::DescriptorType::UNIFORM_BUFFER,

@@ -911,6 +911,7 @@ impl GpuRenderer {
             (UNIFORM_FIRST, "spheres (uniform copy)"),
             (UNIFORM_FIRST + 1, "triangles (uniform copy)"),
             (UNIFORM_FIRST + 2, "bvh nodes (uniform copy)"),
+            (UNIFORM_FIRST + 3, "primitive refs (uniform copy)"),
         ]
         .into_iter()
         .map(|(binding, name)| {
@@ -1456,11 +1457,11 @@ fn plan_lists(
 /// `layout::UNIFORM_LISTS` (`lens` bytes) fits its copy, and the device
 /// binds copies that large and that many uniform buffers; else the plain or
 /// split layout.
-fn choose_lists(split: bool, lens: [u64; 3], limits: &DeviceLimits, allowed: bool) -> Lists {
+fn choose_lists(split: bool, lens: [u64; 4], limits: &DeviceLimits, allowed: bool) -> Lists {
     if split {
         return Lists::Split;
     }
-    // frame, tile and the three copies.
+    // frame, tile and the copies.
     let uniform_buffers = 2 + UNIFORM_LISTS.len() as u32;
     let fits = lens.iter().all(|&len| len <= UNIFORM_LIST_BYTES);
     if allowed
@@ -1545,12 +1546,12 @@ mod tests {
 
     #[test]
     fn uniform_lists_only_on_a_cpu_device_where_every_copy_fits() {
-        let fits = [48, UNIFORM_LIST_BYTES, 64];
+        let fits = [48, UNIFORM_LIST_BYTES, 64, 16];
         let cpu = lavapipe();
         assert_eq!(choose_lists(false, fits, &cpu, true), Lists::Uniform);
         assert_eq!(choose_lists(false, fits, &cpu, false), Lists::Plain);
         assert_eq!(choose_lists(true, fits, &cpu, true), Lists::Split);
-        for j in 0..3 {
+        for j in 0..fits.len() {
             let mut lens = fits;
             lens[j] = UNIFORM_LIST_BYTES + 48;
             assert_eq!(
@@ -1567,7 +1568,8 @@ mod tests {
         };
         assert_eq!(choose_lists(false, fits, &small, true), Lists::Plain);
         let few = DeviceLimits {
-            max_uniform_buffers: 4,
+            // frame, tile and four copies: one short.
+            max_uniform_buffers: 5,
             ..cpu
         };
         assert_eq!(choose_lists(false, fits, &few, true), Lists::Plain);
