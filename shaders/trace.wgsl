@@ -17,7 +17,8 @@
 //  12  storage, read      array<Material>          the distinct triangle-corner materials
 //  13  storage, read      array<u32>               light skips: surfaces through point lights
 //  14.. storage, read     chunks 1-3 of triangles, normals, materials, nodes (SPLIT only)
-//  26-28 uniform          spheres, triangles, nodes again, fixed length (UNIFORM_LISTS only)
+//  26-29 uniform          spheres, triangle corners, nodes, primitive references again,
+//                         fixed length (UNIFORM_LISTS only; layout::CopyForm)
 //
 // Split lists. A list larger than one binding may hold (maxStorageBufferRange)
 // is bound as up to SPLIT_CHUNKS consecutive ranges of 2^frame.chunk_shift[j]
@@ -213,7 +214,10 @@ struct WideNode {
 @group(0) @binding(25) var<storage, read> nodes3: array<WideNode>;
 // See "Uniform lists" above; lengths are src/layout.rs's uniform_list_len.
 @group(0) @binding(26) var<uniform> spheres_u: array<Sphere, 1365>;
-@group(0) @binding(27) var<uniform> triangles_u: array<Triangle, 1365>;
+// Triangles as three vec4 each (1,365), or with UNIFORM_CORNERS the corners
+// only, the nine position words of each back to back (1,820; the hit test
+// reads them, shading then reads the list for the material bits).
+@group(0) @binding(27) var<uniform> triangles_u: array<vec4<f32>, 4096>;
 @group(0) @binding(28) var<uniform> nodes_u: array<WideNode, 1024>;
 // Primitive references, four to an element.
 @group(0) @binding(29) var<uniform> prim_refs_u: array<vec4<u32>, 4096>;
@@ -287,6 +291,11 @@ override LIGHT_SKIPS: bool = false;
 // Spheres, triangles and nodes are read from their uniform copies (see
 // "Uniform lists" above).
 override UNIFORM_LISTS: bool = false;
+// The uniform triangle copy holds corners only (layout::CopyForm::Corners):
+// a scene of 1,366 to 1,820 triangles. Each word then has its own address,
+// 5% more instructions than the whole form on `table`, so only where that
+// does not fit.
+override UNIFORM_CORNERS: bool = false;
 const TANGENT_BAND: f32 = 0.000244140625;
 const ON_SURFACE: f32 = 0.00000095367431640625;
 const SPLIT_CHUNKS: u32 = 4u;
@@ -587,21 +596,52 @@ fn sphere_at(index: u32, time: f32) -> Sphere {
 // it (a shader without SPLIT reads the first binding only), or from its
 // uniform copy (UNIFORM_LISTS).
 fn load_triangle(i: u32) -> Triangle {
+    // if/else on one override at a time: specialisation keeps one branch,
+    // and only a uniform-lists shader names the copies (tested).
     if (UNIFORM_LISTS) {
-        return triangles_u[i];
-    } else {
-        if (SPLIT) {
-            let shift = frame.chunk_shift.x;
-            let j = i & ((1u << shift) - 1u);
-            switch (i >> shift) {
-                case 0u: { return triangles[j]; }
-                case 1u: { return triangles1[j]; }
-                case 2u: { return triangles2[j]; }
-                default: { return triangles3[j]; }
-            }
+        if (UNIFORM_CORNERS) {
+            return load_triangle_list(i);
+        } else {
+            let b = 3u * i;
+            return Triangle(array(triangles_u[b], triangles_u[b + 1u], triangles_u[b + 2u]));
         }
-        return triangles[i];
+    } else {
+        return load_triangle_list(i);
     }
+}
+
+fn load_triangle_list(i: u32) -> Triangle {
+    if (SPLIT) {
+        let shift = frame.chunk_shift.x;
+        let j = i & ((1u << shift) - 1u);
+        switch (i >> shift) {
+            case 0u: { return triangles[j]; }
+            case 1u: { return triangles1[j]; }
+            case 2u: { return triangles2[j]; }
+            default: { return triangles3[j]; }
+        }
+    }
+    return triangles[i];
+}
+
+// Triangle i's corners for a hit test (w = 0 with UNIFORM_CORNERS: only
+// shading reads the material bits, from the list).
+fn load_corners(i: u32) -> Triangle {
+    if (UNIFORM_CORNERS) {
+        let k = 9u * i;
+        // Written out: a loop here is a loop in llvmpipe's code.
+        return Triangle(array(
+            vec4(corner_word(k), corner_word(k + 1u), corner_word(k + 2u), 0.0),
+            vec4(corner_word(k + 3u), corner_word(k + 4u), corner_word(k + 5u), 0.0),
+            vec4(corner_word(k + 6u), corner_word(k + 7u), corner_word(k + 8u), 0.0),
+        ));
+    } else {
+        return load_triangle(i);
+    }
+}
+
+fn corner_word(w: u32) -> f32 {
+    return triangles_u[w >> 2u][w & 3u];
 }
 
 fn load_normals(i: u32) -> TriangleNormals {
@@ -651,7 +691,17 @@ fn load_node(i: u32) -> WideNode {
 }
 
 fn triangle_at(index: u32, time: f32) -> Triangle {
-    var tri = load_triangle(index);
+    return moved(load_triangle(index), index, time);
+}
+
+// triangle_at for a hit test (load_corners).
+fn corners_at(index: u32, time: f32) -> Triangle {
+    return moved(load_corners(index), index, time);
+}
+
+// Triangle `index`, `tri`, where it is `time` seconds after the frame's time.
+fn moved(tri_in: Triangle, index: u32, time: f32) -> Triangle {
+    var tri = tri_in;
     if (MOTION_BLUR) {
         // xyz only: w holds material index bits, which arithmetic could
         // flush (they read as denormals).
@@ -764,7 +814,7 @@ fn hit_prim(ray: Ray, prim: u32, best: ptr<function, Hit>, any_hit: bool) -> boo
         }
     } else {
         if (TRIANGLES) {
-            let h = hit_triangle(ray, triangle_at(index, ray.time), (*best).t);
+            let h = hit_triangle(ray, corners_at(index, ray.time), (*best).t);
             if (h.x < (*best).t) {
                 *best = Hit(h.x, prim, h.y, h.z);
                 return any_hit;

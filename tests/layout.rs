@@ -134,11 +134,9 @@ fn bindings_match_the_pipeline_and_array_strides_match_rust() {
         (12, size_of::<GpuMaterial>()),
         (13, size_of::<u32>()),
     ];
-    // A uniform copy holds what its storage list holds, `packing` of its
-    // elements to one of the copy's.
-    for (j, &(list, _)) in UNIFORM_LISTS.iter().enumerate() {
-        let stride = strides.iter().find(|s| s.0 == list).expect("listed").1;
-        strides.push((UNIFORM_FIRST + j, stride * uniform_list_packing(j)));
+    // A uniform copy's array holds its list's elements, or vec4s of words.
+    for j in 0..UNIFORM_LISTS.len() {
+        strides.push((UNIFORM_FIRST + j, uniform_copy_element_bytes(j)));
     }
     // A split list's extra chunks hold what its first binding holds.
     for (j, &(first, _)) in SPLIT_LISTS.iter().enumerate() {
@@ -188,26 +186,23 @@ fn bindings_match_the_pipeline_and_array_strides_match_rust() {
     let element_of = |b: usize| element.iter().find(|e| e.0 == b).expect("an array").1;
     for (j, &(list, name)) in UNIFORM_LISTS.iter().enumerate() {
         let copy = UNIFORM_FIRST + j;
-        match uniform_list_packing(j) {
-            1 => assert_eq!(
+        let list_stride = strides.iter().find(|s| s.0 == list).expect("listed").1;
+        if uniform_copy_element_bytes(j) == list_stride {
+            assert_eq!(
                 element_of(copy),
                 element_of(list),
                 "binding {copy} copies {name}"
-            ),
-            n => {
-                // A vector of n of the list's scalars.
-                let TypeInner::Scalar(scalar) = m.types[element_of(list)].inner else {
-                    panic!("{name}: a packed list holds scalars");
-                };
-                let TypeInner::Vector { size, scalar: s } = m.types[element_of(copy)].inner else {
-                    panic!("binding {copy} packs {name} into vectors");
-                };
-                assert_eq!(
-                    (size as usize, s),
-                    (n, scalar),
-                    "binding {copy} packs {name}"
-                );
-            }
+            );
+            continue;
+        }
+        // Words, four to a vector: the list's own scalars where it holds
+        // scalars (references), 32-bit ones where it holds structs.
+        let TypeInner::Vector { size, scalar } = m.types[element_of(copy)].inner else {
+            panic!("binding {copy} holds {name} as vectors of words");
+        };
+        assert_eq!((size as usize, scalar.width), (4, 4), "binding {copy}");
+        if let TypeInner::Scalar(s) = m.types[element_of(list)].inner {
+            assert_eq!(scalar, s, "binding {copy} packs {name}");
         }
     }
     for (j, &(first, name)) in SPLIT_LISTS.iter().enumerate() {

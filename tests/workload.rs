@@ -271,35 +271,43 @@ fn bowl(n: usize) -> Scene {
     glint::scene::parse_scene(text.as_bytes(), "bowl.scene").expect("bowl parses")
 }
 
-/// On a CPU device, spheres, triangles and nodes that fit their uniform
-/// copies are read from those ("Uniform lists" in the shader), and the image
-/// is the storage lists' bit for bit; lists too big for a copy, and GPUs,
-/// keep the storage lists.
+/// On a CPU device, spheres, triangles, nodes and references that fit their
+/// uniform copies are read from those ("Uniform lists" in the shader), the
+/// triangles whole or, past 1,365, as corners, and the image is the storage
+/// lists' bit for bit; lists too big for a copy, and GPUs, keep the storage
+/// lists.
 #[test]
 fn uniform_lists_render_the_storage_lists_image() {
-    // 800 triangles fit a copy (1,365 of 48 bytes); 3,200 do not.
-    let small = bowl(20);
-    let Some(uniform) = render_passes(&small, 32, 24, |o| o.tile_size = 16) else {
-        return;
-    };
-    let (uniform, t_uniform) = uniform.expect("render with uniform lists");
-    let (storage, t_storage) = render_passes(&small, 32, 24, |o| {
-        o.tile_size = 16;
-        o.uniform_lists = false;
-    })
-    .expect("device")
-    .expect("render with storage lists");
-    let cpu = gpu()
+    // 800 triangles fit a copy whole (1,365 of 48 bytes), 1,458 as corners
+    // (1,820 of 36 bytes); 3,200 do not.
+    for (n, corners) in [(20, false), (27, true)] {
+        let scene = bowl(n);
+        let Some(uniform) = render_passes(&scene, 32, 24, |o| o.tile_size = 16) else {
+            return;
+        };
+        let (uniform, t_uniform) = uniform.expect("render with uniform lists");
+        let (storage, t_storage) = render_passes(&scene, 32, 24, |o| {
+            o.tile_size = 16;
+            o.uniform_lists = false;
+        })
         .expect("device")
-        .lock()
-        .unwrap_or_else(|e| e.into_inner())
-        .ctx
-        .limits()
-        .cpu;
-    assert_eq!(t_uniform.counted("uniform lists"), u64::from(cpu));
-    assert_eq!(t_storage.counted("uniform lists"), 0);
-    for (i, (a, b)) in uniform.pixels.iter().zip(&storage.pixels).enumerate() {
-        assert_eq!(a.map(f32::to_bits), b.map(f32::to_bits), "pixel {i}");
+        .expect("render with storage lists");
+        let cpu = gpu()
+            .expect("device")
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .ctx
+            .limits()
+            .cpu;
+        assert_eq!(t_uniform.counted("uniform lists"), u64::from(cpu));
+        assert_eq!(
+            t_uniform.counted("uniform corners"),
+            u64::from(cpu && corners)
+        );
+        assert_eq!(t_storage.counted("uniform lists"), 0);
+        for (i, (a, b)) in uniform.pixels.iter().zip(&storage.pixels).enumerate() {
+            assert_eq!(a.map(f32::to_bits), b.map(f32::to_bits), "{n}: pixel {i}");
+        }
     }
     let (_, t_big) = render_passes(&bowl(40), 8, 6, |o| o.tile_size = 16)
         .expect("device")
@@ -311,7 +319,7 @@ fn uniform_lists_render_the_storage_lists_image() {
 /// cache, whichever lists the scene gets.
 #[test]
 fn prepare_builds_the_pipeline_the_render_uses() {
-    for (n, uniform_lists) in [(6, true), (6, false), (30, true)] {
+    for (n, uniform_lists) in [(6, true), (6, false), (27, true), (30, true)] {
         let scene = bowl(n);
         let Some(gpu) = gpu() else {
             return;
@@ -392,49 +400,6 @@ fn big_lists_split_over_bindings_render_the_same_image() {
         Err(e) => panic!("expected a limit error, got {e}"),
         Ok(_) => panic!("triangles rendered past 4 bindings of their limit"),
     }
-}
-
-/// Resident memory of this process, from /proc (Linux).
-fn rss_bytes() -> Option<u64> {
-    let statm = std::fs::read_to_string("/proc/self/statm").ok()?;
-    let pages: u64 = statm.split_whitespace().nth(1)?.parse().ok()?;
-    Some(pages * 4096)
-}
-
-/// One renderer over many frames and tiles keeps its memory: command
-/// buffers, sets and buffers are reused (it grew ~650 KB a frame).
-#[test]
-fn memory_stays_flat_over_many_frames() {
-    let Some(scene) = classic_scene("test1") else {
-        return;
-    };
-    if rss_bytes().is_none() {
-        notice("SKIPPED: memory check: no /proc/self/statm");
-        return;
-    }
-    let frame = |i: u32| {
-        // 48x40 in 8x8 tiles: 30 passes a frame.
-        render_passes(&scene, 48, 40, |o| o.tile_size = 8)
-            .map(|r| r.unwrap_or_else(|e| panic!("frame {i}: {e}")))
-    };
-    // The allocator and the driver settle over the first frames; a leak
-    // of the old kind (~650 KB a frame) would add ~190 MB after them.
-    for i in 0..100 {
-        if frame(i).is_none() {
-            return;
-        }
-    }
-    let settled = rss_bytes().expect("statm");
-    for i in 100..400 {
-        frame(i);
-    }
-    let grown = rss_bytes().expect("statm").saturating_sub(settled);
-    eprintln!("RSS grew {} KB over 300 frames of 30 tiles", grown / 1024);
-    assert!(
-        grown < 16 << 20,
-        "RSS grew {} KB over 300 frames",
-        grown / 1024
-    );
 }
 
 /// Progress is reported after every pass, in pixels finished: it never goes

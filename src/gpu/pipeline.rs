@@ -49,6 +49,8 @@ pub struct PipelineKey {
     /// Some light lies on a surface (`lights_on_surfaces`): the shader that
     /// reads the skip lists.
     pub light_skips: bool,
+    /// The uniform triangle copy holds corners only (`CopyForm::Corners`).
+    pub corners: bool,
     pub kernel: Kernel,
 }
 
@@ -225,6 +227,7 @@ impl TracePipeline {
         let variant = super::shader::Variant {
             lists: key.lists,
             light_skips: key.light_skips,
+            corners: key.corners,
         };
         let words = super::shader::spirv(key.methods, key.features, variant)?;
         let device = &self.shared.device;

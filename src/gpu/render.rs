@@ -32,21 +32,33 @@ use crate::camera::Camera;
 use crate::framebuffer::Framebuffer;
 use crate::info::Features;
 use crate::layout::{
-    padded, GpuMaterial, GpuPixelState, GpuScene, GpuStatus, GpuTile, GpuTriangle,
-    GpuTriangleNormals, GpuWideNode, PATH_HEADER, PATH_PER_LIGHT, SPLIT_CHUNKS, SPLIT_FIRST,
-    SPLIT_LISTS, UNIFORM_FIRST, UNIFORM_LISTS, UNIFORM_LIST_BYTES, WORKGROUP_SIZE,
+    padded, uniform_copy, uniform_copy_bytes, uniform_copy_form, CopyForm, GpuMaterial,
+    GpuPixelState, GpuScene, GpuStatus, GpuTile, GpuTriangle, GpuTriangleNormals, GpuWideNode,
+    PATH_HEADER, PATH_PER_LIGHT, SPLIT_CHUNKS, SPLIT_FIRST, SPLIT_LISTS, UNIFORM_FIRST,
+    UNIFORM_LISTS, UNIFORM_LIST_BYTES, WORKGROUP_SIZE,
 };
 use crate::methods::Methods;
 use crate::probe::{PathRecord, ProbeImage};
 use crate::scene::Effects;
 use crate::timing::{Timings, CLOSEST_RAYS, GPU_TIME_NS, SHADOW_RAYS};
 
-fn key(options: &GpuRenderOptions, kernel: Kernel, lists: Lists, light_skips: bool) -> PipelineKey {
+fn key(
+    options: &GpuRenderOptions,
+    kernel: Kernel,
+    lists: Lists,
+    light_skips: bool,
+    uploads: &[Upload],
+) -> PipelineKey {
+    let triangles = uploads
+        .iter()
+        .find(|u| u.binding == UNIFORM_LISTS[1].0)
+        .map_or(0, |u| u.bytes.len() as u64);
     PipelineKey {
         methods: options.methods,
         features: options.features,
         lists,
         light_skips,
+        corners: lists == Lists::Uniform && uniform_copy_form(1, triangles) == CopyForm::Corners,
         kernel,
     }
 }
@@ -395,7 +407,7 @@ impl GpuRenderer {
         kernel: Kernel,
     ) -> Result<Duration, GpuError> {
         self.pipeline
-            .measure_build(key(options, kernel, Lists::Plain, false))
+            .measure_build(key(options, kernel, Lists::Plain, false, &[]))
     }
 
     /// Builds (or finds in the cache) the pipeline a render of `scene` with
@@ -408,12 +420,13 @@ impl GpuRenderer {
     ) -> Result<Duration, GpuError> {
         let limits = self.limits(options.storage_limit);
         // A plan that fails fails the render too, which then says why.
-        let lists = plan_lists(&scene_uploads(scene), &limits, options.uniform_lists)
+        let uploads = scene_uploads(scene);
+        let lists = plan_lists(&uploads, &limits, options.uniform_lists)
             .map_or(Lists::Plain, |(_, lists)| lists);
         let light_skips = !scene.skips.is_empty();
         Ok(self
             .pipeline
-            .get(key(options, kernel, lists, light_skips))?
+            .get(key(options, kernel, lists, light_skips, &uploads))?
             .1)
     }
 
@@ -689,13 +702,13 @@ impl GpuRenderer {
                     .find(|u| u.binding == binding)
                     .expect("uploaded")
                     .bytes;
-                uploads.push(upload(UNIFORM_FIRST + j, name, uniform_copy(list).into()));
+                let copy = uniform_copy(j, list).expect("choose_lists checked that it fits");
+                uploads.push(upload(UNIFORM_FIRST + j, name, copy.into()));
             }
         }
         let light_skips = !scene.skips.is_empty();
-        let (pipeline, build_time) = self
-            .pipeline
-            .get(key(options, kernel, lists, light_skips))?;
+        let key = key(options, kernel, lists, light_skips, &uploads);
+        let (pipeline, build_time) = self.pipeline.get(key)?;
         if !build_time.is_zero() {
             timings.add("pipeline", build_time);
         }
@@ -829,6 +842,9 @@ impl GpuRenderer {
             Lists::Split => timings.count("split lists", 1),
             Lists::Uniform => timings.count("uniform lists", 1),
             Lists::Plain => {}
+        }
+        if key.corners {
+            timings.count("uniform corners", 1);
         }
         if retries > 0 {
             // Tiles redone with a smaller budget after a pass was cut short.
@@ -1463,7 +1479,7 @@ fn choose_lists(split: bool, lens: [u64; 4], limits: &DeviceLimits, allowed: boo
     }
     // frame, tile and the copies.
     let uniform_buffers = 2 + UNIFORM_LISTS.len() as u32;
-    let fits = lens.iter().all(|&len| len <= UNIFORM_LIST_BYTES);
+    let fits = (0..lens.len()).all(|j| uniform_copy_bytes(j, lens[j]) <= UNIFORM_LIST_BYTES);
     if allowed
         && limits.cpu
         && fits
@@ -1474,14 +1490,6 @@ fn choose_lists(split: bool, lens: [u64; 4], limits: &DeviceLimits, allowed: boo
     } else {
         Lists::Plain
     }
-}
-
-/// A list's uniform copy: its bytes, zero-padded to the shader's
-/// fixed-length array (`UNIFORM_LIST_BYTES`).
-fn uniform_copy(list: &[u8]) -> Vec<u8> {
-    let mut copy = list.to_vec();
-    copy.resize(UNIFORM_LIST_BYTES as usize, 0);
-    copy
 }
 
 fn binding_name(binding: usize) -> &'static str {
@@ -1553,7 +1561,8 @@ mod tests {
         assert_eq!(choose_lists(true, fits, &cpu, true), Lists::Split);
         for j in 0..fits.len() {
             let mut lens = fits;
-            lens[j] = UNIFORM_LIST_BYTES + 48;
+            // Too big in any form (triangles fit past 64 KiB as corners).
+            lens[j] = 2 * UNIFORM_LIST_BYTES;
             assert_eq!(
                 choose_lists(false, lens, &cpu, true),
                 Lists::Plain,
@@ -1577,9 +1586,42 @@ mod tests {
 
     #[test]
     fn a_uniform_copy_is_its_list_zero_padded_to_the_fixed_length() {
-        let copy = uniform_copy(&[1, 2, 3]);
+        let copy = uniform_copy(0, &[1, 2, 3]).expect("fits");
         assert_eq!(copy.len() as u64, UNIFORM_LIST_BYTES);
         assert_eq!(&copy[..3], &[1, 2, 3]);
         assert!(copy[3..].iter().all(|&b| b == 0));
+    }
+
+    /// Triangles past 1,365 go as their corners' nine words back to back,
+    /// up to 1,820; more have no copy.
+    #[test]
+    fn triangles_past_a_whole_copy_go_as_corners() {
+        let triangles = |n: usize| -> Vec<GpuTriangle> {
+            (0..n)
+                .map(|i| GpuTriangle {
+                    v: [0, 1, 2].map(|c| [0, 1, 2, 3].map(|k| (100 * i + 10 * c + k) as f32)),
+                })
+                .collect()
+        };
+        let whole = triangles(1365);
+        let bytes: &[u8] = bytemuck::cast_slice(&whole);
+        assert_eq!(uniform_copy_form(1, bytes.len() as u64), CopyForm::Whole);
+        assert_eq!(&uniform_copy(1, bytes).expect("fits")[..bytes.len()], bytes);
+        let many = triangles(1820);
+        let bytes: &[u8] = bytemuck::cast_slice(&many);
+        assert_eq!(uniform_copy_form(1, bytes.len() as u64), CopyForm::Corners);
+        let copy = uniform_copy(1, bytes).expect("fits as corners");
+        let words: &[f32] = bytemuck::cast_slice(&copy);
+        for (i, t) in many.iter().enumerate() {
+            for c in 0..3 {
+                assert_eq!(&words[9 * i + 3 * c..9 * i + 3 * c + 3], &t.v[c][..3]);
+            }
+        }
+        let lens = |triangles: usize| [0, 48 * triangles as u64, 64, 16];
+        let cpu = lavapipe();
+        assert_eq!(choose_lists(false, lens(1820), &cpu, true), Lists::Uniform);
+        assert_eq!(choose_lists(false, lens(1821), &cpu, true), Lists::Plain);
+        let too_many = triangles(1821);
+        assert!(uniform_copy(1, bytemuck::cast_slice(&too_many)).is_none());
     }
 }

@@ -63,6 +63,9 @@ pub struct Variant {
     pub lists: Lists,
     /// Some point light lies on a surface (`lights_on_surfaces`).
     pub light_skips: bool,
+    /// With uniform lists: the triangle copy holds corners only
+    /// (`layout::CopyForm::Corners`).
+    pub corners: bool,
 }
 
 /// The override values of a variant, as `process_overrides` takes them.
@@ -80,6 +83,10 @@ pub fn pipeline_constants(
         flag(variant.lists == Lists::Uniform),
     );
     constants.insert("LIGHT_SKIPS".into(), flag(variant.light_skips));
+    constants.insert(
+        "UNIFORM_CORNERS".into(),
+        flag(variant.lists == Lists::Uniform && variant.corners),
+    );
     for (name, on) in features.overrides() {
         constants.insert(name.into(), flag(on));
     }
@@ -101,6 +108,7 @@ pub fn specialize(
         match variant.lists {
             Lists::Plain => "",
             Lists::Split => ", split lists",
+            Lists::Uniform if variant.corners => ", uniform lists (corners)",
             Lists::Uniform => ", uniform lists",
         },
         if variant.light_skips {
@@ -428,7 +436,7 @@ mod tests {
     fn only_a_uniform_lists_shader_reads_the_uniform_copies() {
         let (plain, _) = specialize(Methods::Robust, Features::ALL, Variant::default()).unwrap();
         let used = globals_used(&plain);
-        for name in ["spheres", "triangles", "nodes"] {
+        for name in ["spheres", "triangles", "nodes", "prim_refs"] {
             assert!(used.iter().any(|n| n == name), "{name} unused: {used:?}");
             let copy = format!("{name}_u");
             assert!(!used.contains(&copy), "{copy} used: {used:?}");
@@ -439,10 +447,24 @@ mod tests {
         };
         let (uniform, _) = specialize(Methods::Robust, Features::ALL, variant).unwrap();
         let used = globals_used(&uniform);
-        for name in ["spheres", "triangles", "nodes"] {
+        for name in ["spheres", "triangles", "nodes", "prim_refs"] {
             let copy = format!("{name}_u");
             assert!(used.contains(&copy), "{copy} unused: {used:?}");
-            assert!(!used.iter().any(|n| n == name), "{name} used: {used:?}");
+            // The leaf loop still bounds a reference by the list's length.
+            if name != "prim_refs" {
+                assert!(!used.iter().any(|n| n == name), "{name} used: {used:?}");
+            }
+        }
+        // Triangles as corners: shading reads the list for the materials.
+        let variant = Variant {
+            lists: Lists::Uniform,
+            corners: true,
+            ..Variant::default()
+        };
+        let (corners, _) = specialize(Methods::Robust, Features::ALL, variant).unwrap();
+        let used = globals_used(&corners);
+        for name in ["triangles_u", "triangles"] {
+            assert!(used.iter().any(|n| n == name), "{name} unused: {used:?}");
         }
     }
 
@@ -516,8 +538,12 @@ mod tests {
             };
             for methods in Methods::ALL {
                 for lists in Lists::ALL {
-                    for light_skips in [false, true] {
-                        let variant = Variant { lists, light_skips };
+                    for (light_skips, corners) in [(false, false), (true, false), (false, true)] {
+                        let variant = Variant {
+                            lists,
+                            light_skips,
+                            corners,
+                        };
                         spirv(methods, f, variant).unwrap_or_else(|e| panic!("{e}"));
                     }
                 }
