@@ -29,10 +29,11 @@
 // Uniform lists. On a CPU device (llvmpipe) a storage load is a loop over the
 // eight lanes, each with a test of its mask and of the binding's size, a
 // scalar load and a blend; a uniform load is a branch-free gather with the
-// index clamped. The lists a traversal reads most (spheres, triangles, nodes)
-// are therefore also bound as uniform buffers of UNIFORM_LIST_BYTES each
-// where they fit, and a shader built with UNIFORM_LISTS reads those instead
-// (src/gpu/render.rs: choose_lists). GPUs keep the storage lists: their
+// index clamped. The lists a traversal reads most (spheres, triangles, nodes,
+// primitive references) are therefore also bound as uniform buffers of
+// UNIFORM_LIST_BYTES each where they fit (triangles past 1,365 as their
+// corners only: UNIFORM_CORNERS), and a shader built with UNIFORM_LISTS reads
+// those instead (src/gpu/render.rs: choose_lists; src/layout.rs: CopyForm). GPUs keep the storage lists: their
 // uniform (constant) caches serialise lanes that read different addresses.
 //
 // Bounded work. render_tile does not render a pixel in one go: it runs the
@@ -288,8 +289,8 @@ override SPLIT: bool = false;
 // Some point light lies on a surface: shadow rays towards it treat the
 // surfaces through it by the rule of src/lights_on_surfaces.rs.
 override LIGHT_SKIPS: bool = false;
-// Spheres, triangles and nodes are read from their uniform copies (see
-// "Uniform lists" above).
+// Spheres, triangles, nodes and primitive references are read from their
+// uniform copies (see "Uniform lists" above).
 override UNIFORM_LISTS: bool = false;
 // The uniform triangle copy holds corners only (layout::CopyForm::Corners):
 // a scene of 1,366 to 1,820 triangles. Each word then has its own address,

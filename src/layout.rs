@@ -220,6 +220,9 @@ pub enum CopyForm {
     Corners,
 }
 
+/// Bytes of a triangle in `CopyForm::Corners`: nine position words.
+const CORNER_BYTES: usize = 9 * 4;
+
 /// Storage element bytes of the lists of `UNIFORM_LISTS`.
 const LIST_STRIDES: [usize; 4] = [
     std::mem::size_of::<GpuSphere>(),
@@ -257,7 +260,7 @@ pub const fn uniform_list_len(j: usize) -> u64 {
 /// Bytes the uniform copy of list j needs for a list of `list_bytes`.
 pub const fn uniform_copy_bytes(j: usize, list_bytes: u64) -> u64 {
     match uniform_copy_form(j, list_bytes) {
-        CopyForm::Corners => list_bytes / LIST_STRIDES[j] as u64 * 36,
+        CopyForm::Corners => list_bytes / LIST_STRIDES[j] as u64 * CORNER_BYTES as u64,
         CopyForm::Whole | CopyForm::Packed => list_bytes,
     }
 }
@@ -273,7 +276,8 @@ pub fn uniform_copy(j: usize, list: &[u8]) -> Option<Vec<u8>> {
         CopyForm::Whole | CopyForm::Packed => list.to_vec(),
         CopyForm::Corners => list
             .chunks_exact(LIST_STRIDES[j])
-            .flat_map(|t| [&t[0..12], &t[16..28], &t[32..44]])
+            // Each corner's xyz, the first 12 bytes of its vec4.
+            .flat_map(|t| [0, 16, 32].map(|c| &t[c..c + 12]))
             .flatten()
             .copied()
             .collect(),

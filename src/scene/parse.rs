@@ -265,6 +265,10 @@ fn parse_windows(mut reader: impl Read, path: &Path, windows: Windows) -> Result
     }
 }
 
+/// The objects a part parsed ahead may hold (`parse_ahead`), and so the
+/// words a part may start at.
+const SIMPLE_OBJECTS: [&str; 3] = ["sphere", "triangle", "light"];
+
 /// Where the parts of a window after the first begin: for each thread but
 /// the first, the first line at or after its share of `text` that starts
 /// with `sphere`, `triangle` or `light`. Only a guess (such a word could
@@ -296,7 +300,7 @@ fn next_object_line(text: &[u8], from: usize) -> Option<usize> {
             .position(u8::is_ascii_whitespace)
             .map(|n| j + n)?;
         let word = &text[j..word_end];
-        if ["sphere", "triangle", "light"]
+        if SIMPLE_OBJECTS
             .iter()
             .any(|w| word.eq_ignore_ascii_case(w.as_bytes()))
         {
@@ -337,7 +341,6 @@ fn parse_ahead(
     let mut parser = Parser::new(&buf[from..], base + from, at_eof, path, state);
     parser.lookahead = lookahead;
     parser.stop_at = stop.map(|s| s - from);
-    parser.ahead = true;
     let end = parser.run_ahead();
     Ahead {
         state: parser.state,
@@ -443,9 +446,9 @@ struct Parser<'a> {
     /// Where the next part of the window begins (parsed by another thread):
     /// no object is begun at or past it.
     stop_at: Option<usize>,
-    /// Parsing ahead (`parse_ahead`): a warning spoils the object.
-    ahead: bool,
-    spoiled: bool,
+    /// A warning was given: a part parsed ahead (`run_ahead`) drops the
+    /// object, whose warning the parse in order gives.
+    warned: bool,
     path: &'a str,
     pos: usize,
     /// Also the line position (`State::line`, `State::line_start`).
@@ -472,8 +475,7 @@ impl<'a> Parser<'a> {
             starved: false,
             lookahead: LOOKAHEAD,
             stop_at: None,
-            ahead: false,
-            spoiled: false,
+            warned: false,
             path,
             pos: 0,
             state,
@@ -532,18 +534,18 @@ impl<'a> Parser<'a> {
             if self.at_stop() || (!self.at_eof && self.src.len() - self.pos < self.lookahead) {
                 return self.pos;
             }
-            let mark = self.mark();
+            let saved = self.at();
             let simple = self
                 .next_token()
-                .is_some_and(|t| t.is("sphere") || t.is("triangle") || t.is("light"));
-            self.undo(mark);
+                .is_some_and(|t| SIMPLE_OBJECTS.iter().any(|w| t.is(w)));
+            self.go(saved);
             self.starved = false;
             if !simple {
                 return self.pos;
             }
             let mark = self.mark();
             match self.resumable(Self::object) {
-                Ok(Some(true)) if !self.spoiled => {}
+                Ok(Some(true)) if !self.warned => {}
                 _ => {
                     self.undo(mark);
                     return self.pos;
@@ -1129,7 +1131,7 @@ impl<'a> Parser<'a> {
     /// and counts the rest, so a file that repeats one mistake a million
     /// times costs a counter, not a million diagnostics.
     fn warn(&mut self, d: Diagnostic) {
-        self.spoiled |= self.ahead;
+        self.warned = true;
         let same = self
             .state
             .scene
