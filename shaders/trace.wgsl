@@ -19,6 +19,7 @@
 //  14.. storage, read     chunks 1-3 of triangles, normals, materials, nodes (SPLIT only)
 //  26-29 uniform          spheres, triangle corners, nodes, primitive references again,
 //                         fixed length (UNIFORM_LISTS only; layout::CopyForm)
+//  30  never bound        device_memory: marks the loads through device addresses
 //
 // Split lists. A list larger than one binding may hold (maxStorageBufferRange)
 // is bound as up to SPLIT_CHUNKS consecutive ranges of 2^frame.chunk_shift[j]
@@ -35,6 +36,17 @@
 // corners only: UNIFORM_CORNERS), and a shader built with UNIFORM_LISTS reads
 // those instead (src/gpu/render.rs: choose_lists; src/layout.rs: CopyForm). GPUs keep the storage lists: their
 // uniform (constant) caches serialise lanes that read different addresses.
+//
+// Address lists. Mesa 25's llvmpipe turns a load through a device address
+// (SPV_KHR_physical_storage_buffer) into one AVX gather instruction for the
+// eight lanes, where a storage load is the per-lane loop above and a
+// uniform one a per-lane extract, load and insert. WGSL has no such
+// pointers, so a shader built with ADDRESSES reads the four hot lists
+// through device_load4 and device_load1, whose bodies (a read of the
+// never-bound device_memory) src/gpu/shader.rs replaces in the SPIR-V by a
+// load from the address they are given (src/gpu/shader.rs: device_loads;
+// src/gpu/render.rs: choose_lists). The lists stay bound as storage
+// buffers for everything else.
 //
 // Bounded work. render_tile does not render a pixel in one go: it runs the
 // pixel's work (samples, bounces, one light term or one area-light sample at
@@ -82,6 +94,10 @@ struct Frame {
     shutter: f32,
     // log2 of the elements per chunk: triangles, normals, materials, nodes.
     chunk_shift: vec4<u32>,
+    // Device addresses of spheres, triangles, nodes, primitive references,
+    // normals and materials (layout::ADDRESS_LISTS), two to a vec4 as (low,
+    // high) words; only a shader built with ADDRESSES reads them.
+    addresses: array<vec4<u32>, 3>,
 }
 
 struct Tile {
@@ -222,6 +238,9 @@ struct WideNode {
 @group(0) @binding(28) var<uniform> nodes_u: array<WideNode, 1024>;
 // Primitive references, four to an element.
 @group(0) @binding(29) var<uniform> prim_refs_u: array<vec4<u32>, 4096>;
+// Never bound: it marks the device-address loads (see "Address lists"
+// above), whose bodies src/gpu/shader.rs replaces.
+@group(0) @binding(30) var<storage, read> device_memory: array<vec4<u32>>;
 
 // Loop iterations this invocation has run (every loop counts, as drivers
 // count them), and whether any of its loops ended without its own exit.
@@ -297,6 +316,9 @@ override UNIFORM_LISTS: bool = false;
 // 5% more instructions than the whole form on `table`, so only where that
 // does not fit.
 override UNIFORM_CORNERS: bool = false;
+// Read spheres, triangles, nodes and primitive references through their
+// device addresses (see "Address lists" above).
+override ADDRESSES: bool = false;
 const TANGENT_BAND: f32 = 0.000244140625;
 const ON_SURFACE: f32 = 0.00000095367431640625;
 const SPLIT_CHUNKS: u32 = 4u;
@@ -585,7 +607,16 @@ fn sphere_at(index: u32, time: f32) -> Sphere {
     if (UNIFORM_LISTS) {
         s = spheres_u[index];
     } else {
-        s = spheres[index];
+        if (ADDRESSES) {
+            let a = list_address(0u);
+            let k = 3u * index;
+            let w0 = bitcast<vec4<f32>>(device_load4(a, k));
+            let w1 = bitcast<vec4<f32>>(device_load4(a, k + 1u));
+            let w2 = bitcast<vec4<f32>>(device_load4(a, k + 2u));
+            s = Sphere(w0.xyz, w0.w, w1.xyz, w1.w, w2.xyz, w2.w);
+        } else {
+            s = spheres[index];
+        }
     }
     if (MOTION_BLUR) {
         s.center += velocities[index].xyz * time;
@@ -607,7 +638,17 @@ fn load_triangle(i: u32) -> Triangle {
             return Triangle(array(triangles_u[b], triangles_u[b + 1u], triangles_u[b + 2u]));
         }
     } else {
-        return load_triangle_list(i);
+        if (ADDRESSES) {
+            let a = list_address(1u);
+            let k = 3u * i;
+            return Triangle(array(
+                bitcast<vec4<f32>>(device_load4(a, k)),
+                bitcast<vec4<f32>>(device_load4(a, k + 1u)),
+                bitcast<vec4<f32>>(device_load4(a, k + 2u)),
+            ));
+        } else {
+            return load_triangle_list(i);
+        }
     }
 }
 
@@ -646,49 +687,99 @@ fn corner_word(w: u32) -> f32 {
 }
 
 fn load_normals(i: u32) -> TriangleNormals {
-    if (SPLIT) {
-        let shift = frame.chunk_shift.y;
-        let j = i & ((1u << shift) - 1u);
-        switch (i >> shift) {
-            case 0u: { return normals[j]; }
-            case 1u: { return normals1[j]; }
-            case 2u: { return normals2[j]; }
-            default: { return normals3[j]; }
+    if (ADDRESSES) {
+        let a = list_address(4u);
+        let k = 9u * i;
+        // Written out, as in load_corners.
+        return TriangleNormals(array(
+            bitcast<f32>(device_load1(a, k)), bitcast<f32>(device_load1(a, k + 1u)),
+            bitcast<f32>(device_load1(a, k + 2u)), bitcast<f32>(device_load1(a, k + 3u)),
+            bitcast<f32>(device_load1(a, k + 4u)), bitcast<f32>(device_load1(a, k + 5u)),
+            bitcast<f32>(device_load1(a, k + 6u)), bitcast<f32>(device_load1(a, k + 7u)),
+            bitcast<f32>(device_load1(a, k + 8u)),
+        ));
+    } else {
+        if (SPLIT) {
+            let shift = frame.chunk_shift.y;
+            let j = i & ((1u << shift) - 1u);
+            switch (i >> shift) {
+                case 0u: { return normals[j]; }
+                case 1u: { return normals1[j]; }
+                case 2u: { return normals2[j]; }
+                default: { return normals3[j]; }
+            }
         }
+        return normals[i];
     }
-    return normals[i];
 }
 
 fn load_material(i: u32) -> Material {
-    if (SPLIT) {
-        let shift = frame.chunk_shift.z;
-        let j = i & ((1u << shift) - 1u);
-        switch (i >> shift) {
-            case 0u: { return materials[j]; }
-            case 1u: { return materials1[j]; }
-            case 2u: { return materials2[j]; }
-            default: { return materials3[j]; }
+    if (ADDRESSES) {
+        let a = list_address(5u);
+        let w0 = bitcast<vec4<f32>>(device_load4(a, 2u * i));
+        let w1 = bitcast<vec4<f32>>(device_load4(a, 2u * i + 1u));
+        return Material(w0.xyz, w0.w, w1.xyz, w1.w);
+    } else {
+        if (SPLIT) {
+            let shift = frame.chunk_shift.z;
+            let j = i & ((1u << shift) - 1u);
+            switch (i >> shift) {
+                case 0u: { return materials[j]; }
+                case 1u: { return materials1[j]; }
+                case 2u: { return materials2[j]; }
+                default: { return materials3[j]; }
+            }
         }
+        return materials[i];
     }
-    return materials[i];
 }
 
 fn load_node(i: u32) -> WideNode {
     if (UNIFORM_LISTS) {
         return nodes_u[i];
     } else {
-        if (SPLIT) {
-            let shift = frame.chunk_shift.w;
-            let j = i & ((1u << shift) - 1u);
-            switch (i >> shift) {
-                case 0u: { return nodes[j]; }
-                case 1u: { return nodes1[j]; }
-                case 2u: { return nodes2[j]; }
-                default: { return nodes3[j]; }
+        if (ADDRESSES) {
+            let a = list_address(2u);
+            let k = 4u * i;
+            return WideNode(
+                bitcast<vec4<f32>>(device_load4(a, k)),
+                device_load4(a, k + 1u),
+                device_load4(a, k + 2u),
+                device_load4(a, k + 3u),
+            );
+        } else {
+            if (SPLIT) {
+                let shift = frame.chunk_shift.w;
+                let j = i & ((1u << shift) - 1u);
+                switch (i >> shift) {
+                    case 0u: { return nodes[j]; }
+                    case 1u: { return nodes1[j]; }
+                    case 2u: { return nodes2[j]; }
+                    default: { return nodes3[j]; }
+                }
             }
+            return nodes[i];
         }
-        return nodes[i];
     }
+}
+
+// List j's device address (ADDRESSES), as (low, high) words.
+fn list_address(j: u32) -> vec2<u32> {
+    let w = frame.addresses[j >> 1u];
+    return select(w.xy, w.zw, (j & 1u) != 0u);
+}
+
+// Element i of the array of vec4<u32> at device address `base` (low, high
+// words). The body here only marks the function: src/gpu/shader.rs
+// (device_loads) replaces it by a load through a PhysicalStorageBuffer
+// pointer, with the address arithmetic in 64 bits.
+fn device_load4(base: vec2<u32>, i: u32) -> vec4<u32> {
+    return device_memory[base.x ^ base.y ^ i];
+}
+
+// Element i of the array of u32 at device address `base`; see device_load4.
+fn device_load1(base: vec2<u32>, i: u32) -> u32 {
+    return device_memory[base.x ^ base.y ^ i].x;
 }
 
 fn triangle_at(index: u32, time: f32) -> Triangle {
@@ -951,7 +1042,11 @@ fn traverse(ray: Ray, t_max: f32, any_hit: bool) -> Hit {
             if (UNIFORM_LISTS) {
                 word = prim_refs_u[r >> 2u][r & 3u];
             } else {
-                word = prim_refs[r];
+                if (ADDRESSES) {
+                    word = device_load1(list_address(3u), r);
+                } else {
+                    word = prim_refs[r];
+                }
             }
             if (hit_prim(ray, word & ~LEAF_END, &best, any_hit)) {
                 return best;

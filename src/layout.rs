@@ -56,6 +56,9 @@ pub struct GpuFrame {
     /// normals, materials, BVH nodes; see `SPLIT_LISTS`); only a shader built
     /// for split lists reads them.
     pub chunk_shift: [u32; 4],
+    /// Device addresses of the `ADDRESS_LISTS`, two to an element as (low,
+    /// high) words; only a shader built for address lists reads them.
+    pub addresses: [[u32; 4]; 3],
 }
 
 /// Per-dispatch constants (uniform, binding 1): the tile this dispatch
@@ -200,6 +203,19 @@ pub const UNIFORM_LISTS: [(usize, &str); 4] = [
 ];
 /// The first binding of the uniform copies.
 pub const UNIFORM_FIRST: usize = 26;
+
+/// The lists a shader built for address lists (`Lists::Address`) reads
+/// through their device addresses, by binding, in the order of
+/// `GpuFrame::addresses`: those a traversal reads most, and those shading
+/// reads per hit.
+pub const ADDRESS_LISTS: [(usize, &str); 6] = [
+    (2, "spheres"),
+    (3, "triangles"),
+    (6, "bvh nodes"),
+    (7, "primitive refs"),
+    (4, "normals"),
+    (12, "materials"),
+];
 /// Bytes of each uniform copy: its fixed-length array in the shader
 /// (elements: this over the element's size, rounded down). Four times
 /// Vulkan's guaranteed `maxUniformBufferRange`; lavapipe offers it.
@@ -664,6 +680,7 @@ impl GpuScene {
                 0.0
             },
             chunk_shift: [0; 4],
+            addresses: [[0; 4]; 3],
         }
     }
 }

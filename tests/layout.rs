@@ -64,7 +64,8 @@ fn structs_match() {
             shadow_samples,
             reflect_depth,
             shutter,
-            chunk_shift
+            chunk_shift,
+            addresses
         ]
     );
     check_struct!(m, "Tile", GpuTile, [origin, size, budget, first, _pad]);
@@ -152,6 +153,13 @@ fn bindings_match_the_pipeline_and_array_strides_match_rust() {
             continue;
         };
         assert_eq!(binding.group, 0);
+        if binding.binding == glint::gpu::shader::DEVICE_MEMORY_BINDING {
+            // Never bound: only the loads through device addresses read it,
+            // and those are rewritten before the driver sees them.
+            assert_eq!(binding.binding as usize, glint::gpu::BINDINGS.len());
+            assert!(matches!(var.space, AddressSpace::Storage { .. }));
+            continue;
+        }
         let i = binding.binding as usize;
         let expected = match var.space {
             AddressSpace::Uniform => vk::DescriptorType::UNIFORM_BUFFER,

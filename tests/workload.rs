@@ -271,48 +271,50 @@ fn bowl(n: usize) -> Scene {
     glint::scene::parse_scene(text.as_bytes(), "bowl.scene").expect("bowl parses")
 }
 
-/// On a CPU device, spheres, triangles, nodes and references that fit their
-/// uniform copies are read from those ("Uniform lists" in the shader), the
-/// triangles whole or, past 1,365, as corners, and the image is the storage
-/// lists' bit for bit; lists too big for a copy, and GPUs, keep the storage
-/// lists.
+/// On a CPU device the shader reads its hot lists another way than a GPU:
+/// through their device addresses where the driver gathers those loads
+/// ("Address lists" in the shader: llvmpipe from Mesa 25), else from
+/// uniform copies where they fit ("Uniform lists": triangles whole or, past
+/// 1,365, as corners). Either way the image is the storage lists' bit for
+/// bit; lists too big for a copy, and GPUs, keep the storage lists.
 #[test]
-fn uniform_lists_render_the_storage_lists_image() {
+fn cpu_list_forms_render_the_storage_lists_image() {
     // 800 triangles fit a copy whole (1,365 of 48 bytes), 1,458 as corners
     // (1,820 of 36 bytes); 3,200 do not.
-    for (n, corners) in [(20, false), (27, true)] {
+    for (n, copy, corners) in [(20, true, false), (27, true, true), (40, false, false)] {
         let scene = bowl(n);
-        let Some(uniform) = render_passes(&scene, 32, 24, |o| o.tile_size = 16) else {
+        let Some(fast) = render_passes(&scene, 32, 24, |o| o.tile_size = 16) else {
             return;
         };
-        let (uniform, t_uniform) = uniform.expect("render with uniform lists");
+        let (fast, t_fast) = fast.expect("render with the CPU list forms");
         let (storage, t_storage) = render_passes(&scene, 32, 24, |o| {
             o.tile_size = 16;
             o.uniform_lists = false;
         })
         .expect("device")
         .expect("render with storage lists");
-        let cpu = gpu()
+        let limits = *gpu()
             .expect("device")
             .lock()
             .unwrap_or_else(|e| e.into_inner())
             .ctx
-            .limits()
-            .cpu;
-        assert_eq!(t_uniform.counted("uniform lists"), u64::from(cpu));
+            .limits();
+        let addresses = limits.cpu && limits.device_addresses;
+        let uniform = limits.cpu && !addresses && copy;
+        assert_eq!(t_fast.counted("address lists"), u64::from(addresses), "{n}");
+        assert_eq!(t_fast.counted("uniform lists"), u64::from(uniform), "{n}");
         assert_eq!(
-            t_uniform.counted("uniform corners"),
-            u64::from(cpu && corners)
+            t_fast.counted("uniform corners"),
+            u64::from(uniform && corners),
+            "{n}"
         );
-        assert_eq!(t_storage.counted("uniform lists"), 0);
-        for (i, (a, b)) in uniform.pixels.iter().zip(&storage.pixels).enumerate() {
+        for form in ["address lists", "uniform lists"] {
+            assert_eq!(t_storage.counted(form), 0, "{n}: {form}");
+        }
+        for (i, (a, b)) in fast.pixels.iter().zip(&storage.pixels).enumerate() {
             assert_eq!(a.map(f32::to_bits), b.map(f32::to_bits), "{n}: pixel {i}");
         }
     }
-    let (_, t_big) = render_passes(&bowl(40), 8, 6, |o| o.tile_size = 16)
-        .expect("device")
-        .expect("render of 3,200 triangles");
-    assert_eq!(t_big.counted("uniform lists"), 0);
 }
 
 /// `prepare` builds the pipeline a render of the scene then takes from the

@@ -80,8 +80,9 @@ pub struct Timed {
     /// Vulkan device by index or name (see `glint devices`).
     #[arg(long)]
     device: Option<String>,
-    /// GPU: read spheres, triangles and nodes from storage buffers even on
-    /// a CPU device (the shader a GPU runs), not from uniform copies.
+    /// GPU: read every list from its storage buffer even on a CPU device
+    /// (the shader a GPU runs), not through device addresses or from
+    /// uniform copies.
     #[arg(long)]
     storage_lists: bool,
 }

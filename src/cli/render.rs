@@ -143,9 +143,9 @@ pub struct RenderArgs {
     /// settings) instead of one specialised for the scene; for comparisons.
     #[arg(long)]
     generic_shader: bool,
-    /// GPU: read spheres, triangles and nodes from storage buffers even on
-    /// a CPU device (the shader a GPU runs), not from uniform copies; for
-    /// comparisons.
+    /// GPU: read every list from its storage buffer even on a CPU device
+    /// (the shader a GPU runs), not through device addresses or from
+    /// uniform copies; for comparisons.
     #[arg(long)]
     storage_lists: bool,
     /// Render in passes of the scene's samples per pixel (each with its own

@@ -62,6 +62,16 @@ impl Buffer {
         })
     }
 
+    /// The buffer's device address, where the device has them enabled and the
+    /// buffer was made with `SHADER_DEVICE_ADDRESS`.
+    pub fn address(&self) -> Option<u64> {
+        let ext = self.shared.addresses.as_ref()?;
+        let info = vk::BufferDeviceAddressInfo::default().buffer(self.raw);
+        // SAFETY: a live buffer of this device, made with the usage the
+        // query needs (the callers' contract).
+        Some(unsafe { ext.get_buffer_device_address(&info) })
+    }
+
     /// The mapped bytes of a host-visible buffer.
     pub fn mapped(&self) -> &[u8] {
         let slice = self.allocation.as_ref().and_then(|a| a.mapped_slice());

@@ -67,15 +67,18 @@ pub enum Lists {
     /// The plain bindings, and uniform copies of spheres, triangles and
     /// nodes (`layout::UNIFORM_LISTS`), which the shader reads instead.
     Uniform,
+    /// The plain bindings; the shader reads the `layout::UNIFORM_LISTS`
+    /// through their device addresses (`GpuFrame::addresses`) instead.
+    Address,
 }
 
 impl Lists {
-    pub const ALL: [Lists; 3] = [Lists::Plain, Lists::Split, Lists::Uniform];
+    pub const ALL: [Lists; 4] = [Lists::Plain, Lists::Split, Lists::Uniform, Lists::Address];
 
     /// The layout's bindings, in order.
     pub fn bindings(self) -> impl Iterator<Item = usize> + Clone {
         let extra = match self {
-            Lists::Plain => 0..0,
+            Lists::Plain | Lists::Address => 0..0,
             Lists::Split => PLAIN_BINDINGS..UNIFORM_FIRST,
             Lists::Uniform => UNIFORM_FIRST..BINDINGS.len(),
         };
@@ -139,7 +142,7 @@ pub(crate) struct Layout {
 pub struct TracePipeline {
     shared: Arc<Shared>,
     /// One per `Lists::ALL`.
-    layouts: [Layout; 3],
+    layouts: [Layout; 4],
     pipelines: Mutex<HashMap<PipelineKey, vk::Pipeline>>,
 }
 
@@ -155,7 +158,7 @@ impl TracePipeline {
         // was created before a failure.
         let mut p = TracePipeline {
             shared: shared.clone(),
-            layouts: [null; 3],
+            layouts: [null; 4],
             pipelines: Mutex::new(HashMap::new()),
         };
         for lists in Lists::ALL {

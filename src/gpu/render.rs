@@ -34,8 +34,8 @@ use crate::info::Features;
 use crate::layout::{
     padded, uniform_copy, uniform_copy_bytes, uniform_copy_form, CopyForm, GpuMaterial,
     GpuPixelState, GpuScene, GpuStatus, GpuTile, GpuTriangle, GpuTriangleNormals, GpuWideNode,
-    PATH_HEADER, PATH_PER_LIGHT, SPLIT_CHUNKS, SPLIT_FIRST, SPLIT_LISTS, UNIFORM_FIRST,
-    UNIFORM_LISTS, UNIFORM_LIST_BYTES, WORKGROUP_SIZE,
+    ADDRESS_LISTS, PATH_HEADER, PATH_PER_LIGHT, SPLIT_CHUNKS, SPLIT_FIRST, SPLIT_LISTS,
+    UNIFORM_FIRST, UNIFORM_LISTS, UNIFORM_LIST_BYTES, WORKGROUP_SIZE,
 };
 use crate::methods::Methods;
 use crate::probe::{PathRecord, ProbeImage};
@@ -202,9 +202,10 @@ pub struct GpuRenderOptions {
     /// A cap on every storage binding below the device's own
     /// `maxStorageBufferRange` (tests use it to reach the limit cheaply).
     pub storage_limit: Option<u64>,
-    /// Where the device is a CPU and the lists fit, read spheres, triangles
-    /// and nodes from uniform copies (`Lists::Uniform`); false: always the
-    /// storage lists, as on a GPU.
+    /// Where the device is a CPU, read the hot lists through their device
+    /// addresses (`Lists::Address`, where the driver gathers those loads)
+    /// or, where they fit, from uniform copies (`Lists::Uniform`); false:
+    /// always the storage lists, as on a GPU.
     pub uniform_lists: bool,
 }
 
@@ -354,7 +355,7 @@ struct Slot {
     command: vk::CommandBuffer,
     fence: vk::Fence,
     /// A descriptor set of each layout, in `Lists::ALL` order.
-    sets: [vk::DescriptorSet; 3],
+    sets: [vk::DescriptorSet; 4],
     /// Its two timestamps in `Pools::queries` (null pool: none).
     queries: vk::QueryPool,
     first_query: u32,
@@ -720,6 +721,21 @@ impl GpuRenderer {
         let res = guard.as_mut().expect("just created");
         let upload_start = Instant::now();
         self.upload(res, &uploads)?;
+        if lists == Lists::Address {
+            // The lists' addresses are known once their buffers exist.
+            for (j, (binding, _)) in ADDRESS_LISTS.into_iter().enumerate() {
+                let address = res
+                    .scene
+                    .iter()
+                    .find(|(b, _)| *b == binding)
+                    .and_then(|(_, r)| r.get().address())
+                    .expect("address lists need the lists' device addresses");
+                let words = &mut frame.addresses[j / 2][2 * (j % 2)..2 * (j % 2) + 2];
+                words.copy_from_slice(&[address as u32, (address >> 32) as u32]);
+            }
+            uploads[0].bytes = bytemuck::bytes_of(&frame).to_vec().into();
+            self.upload(res, &uploads[..1])?;
+        }
         for slot in &mut res.slots {
             self.bind_slot(
                 slot,
@@ -841,6 +857,7 @@ impl GpuRenderer {
         match lists {
             Lists::Split => timings.count("split lists", 1),
             Lists::Uniform => timings.count("uniform lists", 1),
+            Lists::Address => timings.count("address lists", 1),
             Lists::Plain => {}
         }
         if key.corners {
@@ -931,7 +948,10 @@ impl GpuRenderer {
         ]
         .into_iter()
         .map(|(binding, name)| {
-            let usage = usage_for(BINDINGS[binding]) | vk::BufferUsageFlags::TRANSFER_DST;
+            let mut usage = usage_for(BINDINGS[binding]) | vk::BufferUsageFlags::TRANSFER_DST;
+            if self.ctx.limits().device_addresses && ADDRESS_LISTS.iter().any(|l| l.0 == binding) {
+                usage |= vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS;
+            }
             (binding, Reusable::new(name, usage, MemoryLocation::GpuOnly))
         })
         .collect();
@@ -1071,7 +1091,7 @@ impl GpuRenderer {
             )
         }
         .call("vkAllocateDescriptorSets")?;
-        let sets = [sets[0], sets[1], sets[2]];
+        let sets = [sets[0], sets[1], sets[2], sets[3]];
         let command = self.command_buffer(pools)?;
         let fence = self.fence(pools)?;
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
@@ -1462,20 +1482,44 @@ fn plan_lists(
     let lists = choose_lists(
         split.split,
         UNIFORM_LISTS.map(|(b, _)| len_of(b)),
+        ADDRESS_LISTS.map(|(b, _)| len_of(b)),
         limits,
         uniform_lists,
     );
     Ok((split, lists))
 }
 
-/// Uniform lists (see "Uniform lists" in shaders/trace.wgsl) where they are
+/// The largest list the shader reads through its device address: it
+/// indexes a list by 4-byte words with a 32-bit index, which SPIR-V's
+/// access chains take as signed.
+const ADDRESS_LIST_MAX_BYTES: u64 = 1 << 33;
+
+/// Address lists (see "Address lists" in shaders/trace.wgsl) where they are
+/// `allowed`, no list is split, the device is a CPU with device addresses
+/// (enabled where they pay: `context::address_loads_pay`) and each of
+/// `layout::ADDRESS_LISTS` (`address_lens` bytes) is at most
+/// `ADDRESS_LIST_MAX_BYTES`.
+/// Otherwise uniform lists (see "Uniform lists" in shaders/trace.wgsl) where they are
 /// `allowed`, the device is a CPU, no list is split, each of
 /// `layout::UNIFORM_LISTS` (`lens` bytes) fits its copy, and the device
 /// binds copies that large and that many uniform buffers; else the plain or
 /// split layout.
-fn choose_lists(split: bool, lens: [u64; 4], limits: &DeviceLimits, allowed: bool) -> Lists {
+fn choose_lists(
+    split: bool,
+    lens: [u64; 4],
+    address_lens: [u64; 6],
+    limits: &DeviceLimits,
+    allowed: bool,
+) -> Lists {
     if split {
         return Lists::Split;
+    }
+    if allowed
+        && limits.cpu
+        && limits.device_addresses
+        && address_lens.iter().all(|&n| n <= ADDRESS_LIST_MAX_BYTES)
+    {
+        return Lists::Address;
     }
     // frame, tile and the copies.
     let uniform_buffers = 2 + UNIFORM_LISTS.len() as u32;
@@ -1549,39 +1593,88 @@ mod tests {
             storage_offset_alignment: 16,
             timestamp_period: 1.0,
             timestamp_bits: 64,
+            device_addresses: false,
         }
     }
+
+    const SMALL: [u64; 6] = [48, 48, 64, 16, 36, 32];
 
     #[test]
     fn uniform_lists_only_on_a_cpu_device_where_every_copy_fits() {
         let fits = [48, UNIFORM_LIST_BYTES, 64, 16];
         let cpu = lavapipe();
-        assert_eq!(choose_lists(false, fits, &cpu, true), Lists::Uniform);
-        assert_eq!(choose_lists(false, fits, &cpu, false), Lists::Plain);
-        assert_eq!(choose_lists(true, fits, &cpu, true), Lists::Split);
+        assert_eq!(choose_lists(false, fits, SMALL, &cpu, true), Lists::Uniform);
+        assert_eq!(choose_lists(false, fits, SMALL, &cpu, false), Lists::Plain);
+        assert_eq!(choose_lists(true, fits, SMALL, &cpu, true), Lists::Split);
         for j in 0..fits.len() {
             let mut lens = fits;
             // Too big in any form (triangles fit past 64 KiB as corners).
             lens[j] = 2 * UNIFORM_LIST_BYTES;
             assert_eq!(
-                choose_lists(false, lens, &cpu, true),
+                choose_lists(false, lens, SMALL, &cpu, true),
                 Lists::Plain,
                 "list {j}"
             );
         }
         let gpu = DeviceLimits { cpu: false, ..cpu };
-        assert_eq!(choose_lists(false, fits, &gpu, true), Lists::Plain);
+        assert_eq!(choose_lists(false, fits, SMALL, &gpu, true), Lists::Plain);
         let small = DeviceLimits {
             max_uniform_range: 16384,
             ..cpu
         };
-        assert_eq!(choose_lists(false, fits, &small, true), Lists::Plain);
+        assert_eq!(choose_lists(false, fits, SMALL, &small, true), Lists::Plain);
         let few = DeviceLimits {
             // frame, tile and four copies: one short.
             max_uniform_buffers: 5,
             ..cpu
         };
-        assert_eq!(choose_lists(false, fits, &few, true), Lists::Plain);
+        assert_eq!(choose_lists(false, fits, SMALL, &few, true), Lists::Plain);
+    }
+
+    #[test]
+    fn address_lists_only_where_a_cpu_device_gathers_them_and_indices_reach() {
+        let fits = [48, UNIFORM_LIST_BYTES, 64, 16];
+        let mesa25 = DeviceLimits {
+            device_addresses: true,
+            ..lavapipe()
+        };
+        assert_eq!(
+            choose_lists(false, fits, SMALL, &mesa25, true),
+            Lists::Address
+        );
+        // Even where the uniform copies would not fit.
+        let big = [1 << 30; 4];
+        assert_eq!(
+            choose_lists(false, big, SMALL, &mesa25, true),
+            Lists::Address
+        );
+        assert_eq!(
+            choose_lists(false, fits, SMALL, &mesa25, false),
+            Lists::Plain
+        );
+        assert_eq!(choose_lists(true, fits, SMALL, &mesa25, true), Lists::Split);
+        for j in 0..SMALL.len() {
+            let mut lens = SMALL;
+            lens[j] = ADDRESS_LIST_MAX_BYTES + 4;
+            assert_eq!(
+                choose_lists(false, fits, lens, &mesa25, true),
+                Lists::Uniform,
+                "list {j}"
+            );
+        }
+        let disabled = DeviceLimits {
+            device_addresses: false,
+            ..mesa25
+        };
+        assert_eq!(
+            choose_lists(false, fits, SMALL, &disabled, true),
+            Lists::Uniform
+        );
+        let gpu = DeviceLimits {
+            cpu: false,
+            ..mesa25
+        };
+        assert_eq!(choose_lists(false, fits, SMALL, &gpu, true), Lists::Plain);
     }
 
     #[test]
@@ -1619,8 +1712,14 @@ mod tests {
         }
         let lens = |triangles: usize| [0, 48 * triangles as u64, 64, 16];
         let cpu = lavapipe();
-        assert_eq!(choose_lists(false, lens(1820), &cpu, true), Lists::Uniform);
-        assert_eq!(choose_lists(false, lens(1821), &cpu, true), Lists::Plain);
+        assert_eq!(
+            choose_lists(false, lens(1820), SMALL, &cpu, true),
+            Lists::Uniform
+        );
+        assert_eq!(
+            choose_lists(false, lens(1821), SMALL, &cpu, true),
+            Lists::Plain
+        );
         let too_many = triangles(1821);
         assert!(uniform_copy(1, bytemuck::cast_slice(&too_many)).is_none());
     }

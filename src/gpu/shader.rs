@@ -82,6 +82,7 @@ pub fn pipeline_constants(
         "UNIFORM_LISTS".into(),
         flag(variant.lists == Lists::Uniform),
     );
+    constants.insert("ADDRESSES".into(), flag(variant.lists == Lists::Address));
     constants.insert("LIGHT_SKIPS".into(), flag(variant.light_skips));
     constants.insert(
         "UNIFORM_CORNERS".into(),
@@ -110,6 +111,7 @@ pub fn specialize(
             Lists::Split => ", split lists",
             Lists::Uniform if variant.corners => ", uniform lists (corners)",
             Lists::Uniform => ", uniform lists",
+            Lists::Address => ", address lists",
         },
         if variant.light_skips {
             ", lights on surfaces"
@@ -177,7 +179,12 @@ pub fn spirv(
         what: format!("{} methods, features {}", methods.name(), features.label()),
         message: format!("SPIR-V generation: {e}"),
     })?;
-    Ok(unfill_local_arrays(&words))
+    let words = unfill_local_arrays(&words);
+    Ok(if variant.lists == Lists::Address {
+        device_loads(&words)
+    } else {
+        words
+    })
 }
 
 /// Function-scope arrays the shader writes before it reads any element, so
@@ -244,6 +251,254 @@ pub fn unfill_local_arrays(words: &[u32]) -> Vec<u32> {
         out.extend_from_slice(o);
     }
     out
+}
+
+/// The binding of `device_memory`, the never-bound array whose reads mark
+/// the shader's loads through device addresses (`device_loads`).
+pub const DEVICE_MEMORY_BINDING: u32 = 30;
+
+const OP_MEMORY_MODEL: u32 = spirv::Op::MemoryModel as u32;
+const OP_CAPABILITY: u32 = spirv::Op::Capability as u32;
+const OP_DECORATE: u32 = spirv::Op::Decorate as u32;
+const OP_TYPE_INT: u32 = spirv::Op::TypeInt as u32;
+const OP_TYPE_VECTOR: u32 = spirv::Op::TypeVector as u32;
+const OP_FUNCTION: u32 = spirv::Op::Function as u32;
+const OP_FUNCTION_END: u32 = spirv::Op::FunctionEnd as u32;
+const OP_ACCESS_CHAIN: u32 = spirv::Op::AccessChain as u32;
+
+/// A string operand: UTF-8, nul-terminated, padded to whole words.
+fn string_words(s: &str) -> Vec<u32> {
+    let mut bytes = s.as_bytes().to_vec();
+    bytes.push(0);
+    bytes.resize(bytes.len().div_ceil(4) * 4, 0);
+    bytes
+        .chunks(4)
+        .map(|c| u32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect()
+}
+
+/// Turns each function that reads `device_memory` (the shader's
+/// `device_load4` and `device_load1`) into a load from the device address
+/// in its one parameter, a `vec2<u32>` of (low, high) words: the parameter
+/// bitcast to a 64-bit integer, converted to a PhysicalStorageBuffer
+/// pointer to the function's result type, and loaded with that type's
+/// alignment. The module gains the capabilities (PhysicalStorageBuffer
+/// addresses, Int64), the extension and the addressing model this needs;
+/// `device_memory` is no longer read, so it needs no binding. WGSL has no
+/// pointers into device memory, hence this pass (see "Address lists" in
+/// shaders/trace.wgsl).
+pub fn device_loads(words: &[u32]) -> Vec<u32> {
+    let list: Vec<(u32, &[u32])> = instructions(words).collect();
+    let mut marker = None;
+    let mut u32_type = None;
+    let mut vectors = Vec::new();
+    for &(op, o) in &list {
+        match op {
+            OP_DECORATE
+                if o.len() == 3
+                    && o[1] == spirv::Decoration::Binding as u32
+                    && o[2] == DEVICE_MEMORY_BINDING =>
+            {
+                marker = Some(o[0]);
+            }
+            OP_TYPE_INT if o[1] == 32 && o[2] == 0 => u32_type = Some(o[0]),
+            OP_TYPE_VECTOR => vectors.push((o[0], o[1], o[2])),
+            _ => {}
+        }
+    }
+    let (Some(marker), Some(u32_type)) = (marker, u32_type) else {
+        return words.to_vec();
+    };
+    // naga opens each function with an access chain to every global its
+    // call tree uses, so the marker's chains are of two kinds: one that a
+    // further access chain indexes (a read: that function is a load to
+    // rewrite), and unused ones in its callers (dropped).
+    let chains: HashSet<u32> = list
+        .iter()
+        .filter(|(op, o)| *op == OP_ACCESS_CHAIN && o[2] == marker)
+        .map(|(_, o)| o[1])
+        .collect();
+    // The load functions: where each starts, its result type.
+    let mut loads = Vec::new();
+    let mut start = None;
+    for (i, &(op, o)) in list.iter().enumerate() {
+        match op {
+            OP_FUNCTION => start = Some((i, o[0])),
+            OP_ACCESS_CHAIN if chains.contains(&o[2]) => {
+                if let Some(f) = start.take() {
+                    loads.push(f);
+                }
+            }
+            _ => {}
+        }
+    }
+    let mut bound = words[3];
+    let mut fresh = || {
+        bound += 1;
+        bound - 1
+    };
+    let u64_type = fresh();
+    let zero = fresh();
+    // Per result type of the loads (a u32 or a vector of them), the types
+    // of an array of it in device memory, as glslang writes a
+    // buffer_reference block: a Block struct holding a runtime array.
+    let mut arrays: Vec<DeviceArray> = Vec::new();
+    for &(_, ty) in &loads {
+        if arrays.iter().all(|p| p.element != ty) {
+            let components = vectors
+                .iter()
+                .find(|v| v.0 == ty && v.1 == u32_type)
+                .map_or(1, |v| v.2);
+            arrays.push(DeviceArray {
+                element: ty,
+                bytes: 4 * components,
+                runtime_array: fresh(),
+                block: fresh(),
+                block_pointer: fresh(),
+                element_pointer: fresh(),
+            });
+        }
+    }
+    let psb = spirv::StorageClass::PhysicalStorageBuffer as u32;
+    let mut out = words[..HEADER_WORDS].to_vec();
+    let emit = |out: &mut Vec<u32>, op: spirv::Op, operands: &[u32]| {
+        out.push(((operands.len() as u32 + 1) << 16) | op as u32);
+        out.extend_from_slice(operands);
+    };
+    let mut capabilities = false;
+    let mut extension = false;
+    let mut decorations = false;
+    let mut types = false;
+    let mut at = 0;
+    while at < list.len() {
+        let (op, o) = list[at];
+        if op != OP_CAPABILITY && !extension {
+            // After the capabilities, before everything else.
+            extension = true;
+            emit(
+                &mut out,
+                spirv::Op::Extension,
+                &string_words("SPV_KHR_physical_storage_buffer"),
+            );
+        }
+        if op == OP_MEMORY_MODEL {
+            emit(
+                &mut out,
+                spirv::Op::MemoryModel,
+                &[spirv::AddressingModel::PhysicalStorageBuffer64 as u32, o[1]],
+            );
+            at += 1;
+            continue;
+        }
+        if op == OP_DECORATE && !decorations {
+            decorations = true;
+            for a in &arrays {
+                let stride = spirv::Decoration::ArrayStride as u32;
+                emit(
+                    &mut out,
+                    spirv::Op::Decorate,
+                    &[a.runtime_array, stride, a.bytes],
+                );
+                let block = spirv::Decoration::Block as u32;
+                emit(&mut out, spirv::Op::Decorate, &[a.block, block]);
+                let offset = spirv::Decoration::Offset as u32;
+                emit(
+                    &mut out,
+                    spirv::Op::MemberDecorate,
+                    &[a.block, 0, offset, 0],
+                );
+                let readonly = spirv::Decoration::NonWritable as u32;
+                emit(&mut out, spirv::Op::MemberDecorate, &[a.block, 0, readonly]);
+            }
+        }
+        if op == OP_FUNCTION && !types {
+            types = true;
+            emit(&mut out, spirv::Op::TypeInt, &[u64_type, 64, 0]);
+            emit(&mut out, spirv::Op::Constant, &[u32_type, zero, 0]);
+            for a in &arrays {
+                emit(
+                    &mut out,
+                    spirv::Op::TypeRuntimeArray,
+                    &[a.runtime_array, a.element],
+                );
+                emit(&mut out, spirv::Op::TypeStruct, &[a.block, a.runtime_array]);
+                emit(
+                    &mut out,
+                    spirv::Op::TypePointer,
+                    &[a.block_pointer, psb, a.block],
+                );
+                emit(
+                    &mut out,
+                    spirv::Op::TypePointer,
+                    &[a.element_pointer, psb, a.element],
+                );
+            }
+        }
+        if let Some(&(_, ty)) = loads.iter().find(|l| l.0 == at) {
+            let a = arrays.iter().find(|a| a.element == ty).expect("listed");
+            let (_, base) = list[at + 1];
+            let (_, index) = list[at + 2];
+            let [label, address, block, element, value] =
+                [fresh(), fresh(), fresh(), fresh(), fresh()];
+            emit(&mut out, spirv::Op::Function, o);
+            emit(&mut out, spirv::Op::FunctionParameter, base);
+            emit(&mut out, spirv::Op::FunctionParameter, index);
+            emit(&mut out, spirv::Op::Label, &[label]);
+            emit(&mut out, spirv::Op::Bitcast, &[u64_type, address, base[1]]);
+            emit(
+                &mut out,
+                spirv::Op::ConvertUToPtr,
+                &[a.block_pointer, block, address],
+            );
+            emit(
+                &mut out,
+                spirv::Op::AccessChain,
+                &[a.element_pointer, element, block, zero, index[1]],
+            );
+            let aligned = spirv::MemoryAccess::ALIGNED.bits();
+            emit(
+                &mut out,
+                spirv::Op::Load,
+                &[ty, value, element, aligned, a.bytes],
+            );
+            emit(&mut out, spirv::Op::ReturnValue, &[value]);
+            emit(&mut out, spirv::Op::FunctionEnd, &[]);
+            while list[at].0 != OP_FUNCTION_END {
+                at += 1;
+            }
+            at += 1;
+            continue;
+        }
+        if op == OP_ACCESS_CHAIN && o[2] == marker {
+            at += 1;
+            continue;
+        }
+        out.push(((o.len() as u32 + 1) << 16) | op);
+        out.extend_from_slice(o);
+        if op == OP_CAPABILITY && !capabilities {
+            capabilities = true;
+            for c in [
+                spirv::Capability::Int64,
+                spirv::Capability::PhysicalStorageBufferAddresses,
+            ] {
+                emit(&mut out, spirv::Op::Capability, &[c as u32]);
+            }
+        }
+        at += 1;
+    }
+    out[3] = bound;
+    out
+}
+
+/// The types `device_loads` adds for reading an array of `element` (of
+/// `bytes`) through a device address.
+struct DeviceArray {
+    element: u32,
+    bytes: u32,
+    runtime_array: u32,
+    block: u32,
+    block_pointer: u32,
+    element_pointer: u32,
 }
 
 /// The module's constants and their initialisers, borrowed beside its
@@ -466,6 +721,96 @@ mod tests {
         for name in ["triangles_u", "triangles"] {
             assert!(used.iter().any(|n| n == name), "{name} unused: {used:?}");
         }
+    }
+
+    /// A shader with address lists reads the `layout::ADDRESS_LISTS` only
+    /// through `device_memory`'s loads (the leaf loop still bounds a
+    /// reference by the list's length).
+    #[test]
+    fn an_address_lists_shader_reads_its_lists_only_through_device_loads() {
+        let variant = Variant {
+            lists: Lists::Address,
+            ..Variant::default()
+        };
+        let (m, _) = specialize(Methods::Robust, Features::ALL, variant).unwrap();
+        let used = globals_used(&m);
+        assert!(used.iter().any(|n| n == "device_memory"), "{used:?}");
+        for name in ["spheres", "triangles", "nodes", "normals", "materials"] {
+            assert!(!used.iter().any(|n| n == name), "{name} used: {used:?}");
+        }
+        let (plain, _) = specialize(Methods::Robust, Features::ALL, Variant::default()).unwrap();
+        assert!(!globals_used(&plain).iter().any(|n| n == "device_memory"));
+    }
+
+    /// The ids of the instructions with opcode `op` (result id at `at`).
+    fn results(words: &[u32], op: spirv::Op, at: usize) -> Vec<u32> {
+        instructions(words)
+            .filter(|&(o, _)| o == op as u32)
+            .map(|(_, o)| o[at])
+            .collect()
+    }
+
+    #[test]
+    fn device_loads_replace_every_read_of_the_marker() {
+        let variant = Variant {
+            lists: Lists::Address,
+            ..Variant::default()
+        };
+        let (module, info) = specialize(Methods::Robust, Features::ALL, variant).unwrap();
+        let raw = spv::write_vec(&module, &info, &spv::Options::default(), None).unwrap();
+        let marker = instructions(&raw)
+            .find(|&(op, o)| {
+                op == OP_DECORATE
+                    && o[1] == spirv::Decoration::Binding as u32
+                    && o[2] == DEVICE_MEMORY_BINDING
+            })
+            .map(|(_, o)| o[0])
+            .expect("the marker is declared");
+        let reads = |words: &[u32]| {
+            instructions(words)
+                .filter(|&(op, o)| op == OP_ACCESS_CHAIN && o[2] == marker)
+                .count()
+        };
+        assert!(
+            reads(&raw) > 2,
+            "naga reads the marker in loads and callers"
+        );
+        let words = device_loads(&raw);
+        assert_eq!(reads(&words), 0);
+        // One load per function that read it (device_load4, device_load1),
+        // each through a pointer made from its 64-bit address.
+        assert_eq!(results(&words, spirv::Op::ConvertUToPtr, 1).len(), 2);
+        let loads: Vec<&[u32]> = instructions(&words)
+            .filter(|&(op, o)| op == spirv::Op::Load as u32 && o.len() == 5)
+            .map(|(_, o)| o)
+            .collect();
+        let mut aligned: Vec<u32> = loads
+            .iter()
+            .filter(|o| o[3] == spirv::MemoryAccess::ALIGNED.bits())
+            .map(|o| o[4])
+            .collect();
+        aligned.sort();
+        assert_eq!(aligned, [4, 16]);
+        let capabilities = results(&words, spirv::Op::Capability, 0);
+        for c in [
+            spirv::Capability::Int64,
+            spirv::Capability::PhysicalStorageBufferAddresses,
+        ] {
+            assert!(capabilities.contains(&(c as u32)), "{c:?}");
+        }
+        assert_eq!(
+            results(&words, spirv::Op::MemoryModel, 0),
+            [spirv::AddressingModel::PhysicalStorageBuffer64 as u32]
+        );
+        // What the shipped variants get: only the address one changes.
+        let shipped = spirv(Methods::Robust, Features::ALL, variant).unwrap();
+        assert_eq!(reads(&shipped), 0);
+        let plain = spirv(Methods::Robust, Features::ALL, Variant::default()).unwrap();
+        assert!(results(&plain, spirv::Op::ConvertUToPtr, 1).is_empty());
+        assert_eq!(
+            results(&plain, spirv::Op::MemoryModel, 0),
+            [spirv::AddressingModel::Logical as u32]
+        );
     }
 
     /// Function-scope variables of array type, by name, over every function
