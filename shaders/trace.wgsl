@@ -609,7 +609,7 @@ fn sphere_at(index: u32, time: f32) -> Sphere {
     } else {
         if (ADDRESSES) {
             let a = list_address(0u);
-            let k = 3u * index;
+            let k = 3u * min(index, arrayLength(&spheres) - 1u);
             let w0 = bitcast<vec4<f32>>(device_load4(a, k));
             let w1 = bitcast<vec4<f32>>(device_load4(a, k + 1u));
             let w2 = bitcast<vec4<f32>>(device_load4(a, k + 2u));
@@ -640,7 +640,7 @@ fn load_triangle(i: u32) -> Triangle {
     } else {
         if (ADDRESSES) {
             let a = list_address(1u);
-            let k = 3u * i;
+            let k = 3u * min(i, arrayLength(&triangles) - 1u);
             return Triangle(array(
                 bitcast<vec4<f32>>(device_load4(a, k)),
                 bitcast<vec4<f32>>(device_load4(a, k + 1u)),
@@ -689,7 +689,7 @@ fn corner_word(w: u32) -> f32 {
 fn load_normals(i: u32) -> TriangleNormals {
     if (ADDRESSES) {
         let a = list_address(4u);
-        let k = 9u * i;
+        let k = 9u * min(i, arrayLength(&normals) - 1u);
         // Written out, as in load_corners.
         return TriangleNormals(array(
             bitcast<f32>(device_load1(a, k)), bitcast<f32>(device_load1(a, k + 1u)),
@@ -716,8 +716,9 @@ fn load_normals(i: u32) -> TriangleNormals {
 fn load_material(i: u32) -> Material {
     if (ADDRESSES) {
         let a = list_address(5u);
-        let w0 = bitcast<vec4<f32>>(device_load4(a, 2u * i));
-        let w1 = bitcast<vec4<f32>>(device_load4(a, 2u * i + 1u));
+        let k = 2u * min(i, arrayLength(&materials) - 1u);
+        let w0 = bitcast<vec4<f32>>(device_load4(a, k));
+        let w1 = bitcast<vec4<f32>>(device_load4(a, k + 1u));
         return Material(w0.xyz, w0.w, w1.xyz, w1.w);
     } else {
         if (SPLIT) {
@@ -740,7 +741,7 @@ fn load_node(i: u32) -> WideNode {
     } else {
         if (ADDRESSES) {
             let a = list_address(2u);
-            let k = 4u * i;
+            let k = 4u * min(i, arrayLength(&nodes) - 1u);
             return WideNode(
                 bitcast<vec4<f32>>(device_load4(a, k)),
                 device_load4(a, k + 1u),
@@ -763,7 +764,9 @@ fn load_node(i: u32) -> WideNode {
     }
 }
 
-// List j's device address (ADDRESSES), as (low, high) words.
+// List j's device address (ADDRESSES), as (low, high) words. Its readers
+// clamp their index to the list's binding, as naga's bounds checks do for
+// the bindings' own reads, so that a builder bug cannot read past the list.
 fn list_address(j: u32) -> vec2<u32> {
     let w = frame.addresses[j >> 1u];
     return select(w.xy, w.zw, (j & 1u) != 0u);
