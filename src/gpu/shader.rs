@@ -651,20 +651,44 @@ mod tests {
         }
     }
 
+    /// Names of the global variables that `pick` finds in the expressions
+    /// of any function or entry point, sorted, each once.
+    fn global_names(
+        m: &Module,
+        pick: impl Fn(&Function, &Expression) -> Option<Handle<naga::GlobalVariable>>,
+    ) -> Vec<String> {
+        let functions = m.functions.iter().map(|(_, f)| f);
+        let mut names: Vec<String> = functions
+            .chain(m.entry_points.iter().map(|ep| &ep.function))
+            .flat_map(|f| f.expressions.iter().map(move |(_, e)| (f, e)))
+            .filter_map(|(f, e)| pick(f, e))
+            .filter_map(|g| m.global_variables[g].name.clone())
+            .collect();
+        names.sort();
+        names.dedup();
+        names
+    }
+
     /// Names of the global variables any function or entry point reads.
     fn globals_used(m: &Module) -> Vec<String> {
-        let functions = m.functions.iter().map(|(_, f)| f);
-        let mut used: Vec<String> = functions
-            .chain(m.entry_points.iter().map(|ep| &ep.function))
-            .flat_map(|f| f.expressions.iter())
-            .filter_map(|(_, e)| match e {
-                Expression::GlobalVariable(g) => m.global_variables[*g].name.clone(),
-                _ => None,
-            })
-            .collect();
-        used.sort();
-        used.dedup();
-        used
+        global_names(m, |_, e| match *e {
+            Expression::GlobalVariable(g) => Some(g),
+            _ => None,
+        })
+    }
+
+    /// Names of the global variables some function or entry point indexes
+    /// (reads or writes an element of), not only takes the length of.
+    fn globals_indexed(m: &Module) -> Vec<String> {
+        global_names(m, |f, e| match *e {
+            Expression::Access { base, .. } | Expression::AccessIndex { base, .. } => {
+                match f.expressions[base] {
+                    Expression::GlobalVariable(g) => Some(g),
+                    _ => None,
+                }
+            }
+            _ => None,
+        })
     }
 
     #[test]
@@ -721,29 +745,6 @@ mod tests {
         for name in ["triangles_u", "triangles"] {
             assert!(used.iter().any(|n| n == name), "{name} unused: {used:?}");
         }
-    }
-
-    /// Names of the global variables some function or entry point indexes
-    /// (reads or writes an element of), not only takes the length of.
-    fn globals_indexed(m: &Module) -> Vec<String> {
-        let functions = m.functions.iter().map(|(_, f)| f);
-        let mut used: Vec<String> = functions
-            .chain(m.entry_points.iter().map(|ep| &ep.function))
-            .flat_map(|f| {
-                f.expressions.iter().filter_map(move |(_, e)| match *e {
-                    Expression::Access { base, .. } | Expression::AccessIndex { base, .. } => {
-                        match f.expressions[base] {
-                            Expression::GlobalVariable(g) => m.global_variables[g].name.clone(),
-                            _ => None,
-                        }
-                    }
-                    _ => None,
-                })
-            })
-            .collect();
-        used.sort();
-        used.dedup();
-        used
     }
 
     /// A shader with address lists reads the `layout::ADDRESS_LISTS` only
