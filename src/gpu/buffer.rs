@@ -13,6 +13,7 @@ pub struct Buffer {
     shared: Arc<Shared>,
     pub raw: vk::Buffer,
     pub size: u64,
+    usage: vk::BufferUsageFlags,
     allocation: Option<Allocation>,
 }
 
@@ -58,17 +59,24 @@ impl Buffer {
             shared: shared.clone(),
             raw,
             size,
+            usage,
             allocation: Some(allocation),
         })
     }
 
     /// The buffer's device address, where the device has them enabled and the
-    /// buffer was made with `SHADER_DEVICE_ADDRESS`.
+    /// buffer was made with `SHADER_DEVICE_ADDRESS`; else `None`.
     pub fn address(&self) -> Option<u64> {
         let ext = self.shared.addresses.as_ref()?;
+        if !self
+            .usage
+            .contains(vk::BufferUsageFlags::SHADER_DEVICE_ADDRESS)
+        {
+            return None;
+        }
         let info = vk::BufferDeviceAddressInfo::default().buffer(self.raw);
         // SAFETY: a live buffer of this device, made with the usage the
-        // query needs (the callers' contract).
+        // query needs, on a device with the feature enabled.
         Some(unsafe { ext.get_buffer_device_address(&info) })
     }
 
