@@ -41,8 +41,9 @@
 // (SPV_KHR_physical_storage_buffer) into one AVX gather instruction for the
 // eight lanes, where a storage load is the per-lane loop above and a
 // uniform one a per-lane extract, load and insert. WGSL has no such
-// pointers, so a shader built with ADDRESSES reads the four hot lists
-// through device_load4 and device_load1, whose bodies (a read of the
+// pointers, so a shader built with ADDRESSES reads the six lists of
+// layout::ADDRESS_LISTS (the traversal's four, and the normals and
+// materials shading reads) through device_load4 and device_load1, whose bodies (a read of the
 // never-bound device_memory) src/gpu/shader.rs replaces in the SPIR-V by a
 // load from the address they are given (src/gpu/shader.rs: device_loads;
 // src/gpu/render.rs: choose_lists). The lists stay bound as storage
@@ -316,8 +317,8 @@ override UNIFORM_LISTS: bool = false;
 // 5% more instructions than the whole form on `table`, so only where that
 // does not fit.
 override UNIFORM_CORNERS: bool = false;
-// Read spheres, triangles, nodes and primitive references through their
-// device addresses (see "Address lists" above).
+// Read spheres, triangles, nodes, primitive references, normals and
+// materials through their device addresses (see "Address lists" above).
 override ADDRESSES: bool = false;
 const TANGENT_BAND: f32 = 0.000244140625;
 const ON_SURFACE: f32 = 0.00000095367431640625;

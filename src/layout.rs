@@ -57,8 +57,19 @@ pub struct GpuFrame {
     /// for split lists reads them.
     pub chunk_shift: [u32; 4],
     /// Device addresses of the `ADDRESS_LISTS`, two to an element as (low,
-    /// high) words; only a shader built for address lists reads them.
+    /// high) words (`set_address`); only a shader built for address lists
+    /// reads them.
     pub addresses: [[u32; 4]; 3],
+}
+
+impl GpuFrame {
+    /// Sets the device address of `ADDRESS_LISTS[j]`: (low, high) words,
+    /// two lists to an element, as the shader's `list_address` reads them.
+    pub fn set_address(&mut self, j: usize, address: u64) {
+        let lanes = 2 * (j % 2);
+        self.addresses[j / 2][lanes..lanes + 2]
+            .copy_from_slice(&[address as u32, (address >> 32) as u32]);
+    }
 }
 
 /// Per-dispatch constants (uniform, binding 1): the tile this dispatch
@@ -697,6 +708,17 @@ pub fn padded<T: Pod + Default>(items: &[T]) -> std::borrow::Cow<'_, [u8]> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_list_address_is_low_then_high_word_two_lists_to_an_element() {
+        let mut frame = GpuFrame::default();
+        frame.set_address(3, 0x1234_5678_9abc_def0);
+        frame.set_address(4, 7);
+        assert_eq!(
+            frame.addresses,
+            [[0; 4], [0, 0, 0x9abc_def0, 0x1234_5678], [7, 0, 0, 0]]
+        );
+    }
     use crate::cpu::wide::{collapse_nodes, tests::scene, Node4};
     use glam::Vec4;
 

@@ -720,22 +720,22 @@ impl GpuRenderer {
         }
         let res = guard.as_mut().expect("just created");
         let upload_start = Instant::now();
-        self.upload(res, &uploads)?;
         if lists == Lists::Address {
-            // The lists' addresses are known once their buffers exist.
+            // The frame carries the lists' addresses: size their buffers
+            // first (the upload then reuses them).
             for (j, (binding, _)) in ADDRESS_LISTS.into_iter().enumerate() {
-                let address = res
-                    .scene
+                let size = uploads
                     .iter()
-                    .find(|(b, _)| *b == binding)
-                    .and_then(|(_, r)| r.get().address())
+                    .find(|u| u.binding == binding)
+                    .map_or(0, |u| u.bytes.len() as u64);
+                let address = scene_buffer(&mut res.scene, &self.ctx.shared, binding, size)?
+                    .address()
                     .expect("address lists need the lists' device addresses");
-                let words = &mut frame.addresses[j / 2][2 * (j % 2)..2 * (j % 2) + 2];
-                words.copy_from_slice(&[address as u32, (address >> 32) as u32]);
+                frame.set_address(j, address);
             }
             uploads[0].bytes = bytemuck::bytes_of(&frame).to_vec().into();
-            self.upload(res, &uploads[..1])?;
         }
+        self.upload(res, &uploads)?;
         for slot in &mut res.slots {
             self.bind_slot(
                 slot,
@@ -1001,13 +1001,7 @@ impl GpuRenderer {
         let device = &shared.device;
         for u in uploads {
             let size = u.bytes.len() as u64;
-            let target = res
-                .scene
-                .iter_mut()
-                .find(|(b, _)| *b == u.binding)
-                .map(|(_, r)| r)
-                .expect("every upload has a scene buffer");
-            let dst = target.at_least(shared, size)?.raw;
+            let dst = scene_buffer(&mut res.scene, shared, u.binding, size)?.raw;
             let staging = res.staging.at_least(shared, size)?;
             staging.write(&u.bytes);
             let cmd = res.upload_command;
@@ -1534,6 +1528,21 @@ fn choose_lists(
     } else {
         Lists::Plain
     }
+}
+
+/// The scene buffer of `binding`, holding at least `size` bytes.
+fn scene_buffer<'a>(
+    scene: &'a mut [(usize, Reusable)],
+    shared: &Arc<Shared>,
+    binding: usize,
+    size: u64,
+) -> Result<&'a mut Buffer, GpuError> {
+    scene
+        .iter_mut()
+        .find(|(b, _)| *b == binding)
+        .map(|(_, r)| r)
+        .expect("every upload has a scene buffer")
+        .at_least(shared, size)
 }
 
 fn binding_name(binding: usize) -> &'static str {

@@ -212,6 +212,13 @@ fn instructions(words: &[u32]) -> impl Iterator<Item = (u32, &[u32])> {
     })
 }
 
+/// Appends the instruction `op` with its operands (the inverse of
+/// `instructions`).
+fn push_instruction(out: &mut Vec<u32>, op: u32, operands: &[u32]) {
+    out.push(((operands.len() as u32 + 1) << 16) | op);
+    out.extend_from_slice(operands);
+}
+
 /// Drops the zero fill from every function-scope array variable.
 ///
 /// WGSL zero-fills each function variable, and naga writes that as an
@@ -246,9 +253,7 @@ pub fn unfill_local_arrays(words: &[u32]) -> Vec<u32> {
             && o[2] == STORAGE_FUNCTION
             && array_pointers.contains(&o[0])
             && nulls.contains(&o[3]);
-        let o = if unfill { &o[..3] } else { o };
-        out.push(((o.len() as u32 + 1) << 16) | op);
-        out.extend_from_slice(o);
+        push_instruction(&mut out, op, if unfill { &o[..3] } else { o });
     }
     out
 }
@@ -278,13 +283,16 @@ fn string_words(s: &str) -> Vec<u32> {
 }
 
 /// Turns each function that reads `device_memory` (the shader's
-/// `device_load4` and `device_load1`) into a load from the device address
-/// in its one parameter, a `vec2<u32>` of (low, high) words: the parameter
-/// bitcast to a 64-bit integer, converted to a PhysicalStorageBuffer
-/// pointer to the function's result type, and loaded with that type's
-/// alignment. The module gains the capabilities (PhysicalStorageBuffer
-/// addresses, Int64), the extension and the addressing model this needs;
-/// `device_memory` is no longer read, so it needs no binding. WGSL has no
+/// `device_load4` and `device_load1`) into a load of element `i` of an
+/// array at a device address: its parameters are the address as a
+/// `vec2<u32>` of (low, high) words and `i`. The address is bitcast to a
+/// 64-bit integer and converted to a PhysicalStorageBuffer pointer to a
+/// block holding a runtime array of the function's result type (as
+/// glslang writes a `buffer_reference` block); element `i` is loaded with
+/// that type's alignment. The module gains the capabilities
+/// (PhysicalStorageBuffer addresses, Int64), the extension and the
+/// addressing model this needs, and naga's unused access chains to
+/// `device_memory` in the callers go, so it needs no binding. WGSL has no
 /// pointers into device memory, hence this pass (see "Address lists" in
 /// shaders/trace.wgsl).
 pub fn device_loads(words: &[u32]) -> Vec<u32> {
@@ -362,8 +370,7 @@ pub fn device_loads(words: &[u32]) -> Vec<u32> {
     let psb = spirv::StorageClass::PhysicalStorageBuffer as u32;
     let mut out = words[..HEADER_WORDS].to_vec();
     let emit = |out: &mut Vec<u32>, op: spirv::Op, operands: &[u32]| {
-        out.push(((operands.len() as u32 + 1) << 16) | op as u32);
-        out.extend_from_slice(operands);
+        push_instruction(out, op as u32, operands);
     };
     let mut capabilities = false;
     let mut extension = false;
@@ -473,8 +480,7 @@ pub fn device_loads(words: &[u32]) -> Vec<u32> {
             at += 1;
             continue;
         }
-        out.push(((o.len() as u32 + 1) << 16) | op);
-        out.extend_from_slice(o);
+        push_instruction(&mut out, op, o);
         if op == OP_CAPABILITY && !capabilities {
             capabilities = true;
             for c in [
