@@ -38,16 +38,17 @@ pub const WIDTH: usize = 32;
 /// level with 3 within this machine's noise.
 const OCTET_MIN_RAYS: u32 = 3;
 
-// A packet's rays are bits of a u32 mask, taken eight at a time (AVX2).
-const _: () = assert!(WIDTH <= 32 && WIDTH.is_multiple_of(8));
+// A packet's rays are bits of a u32 mask, taken eight (AVX2) or sixteen
+// (AVX-512) at a time.
+const _: () = assert!(WIDTH <= 32 && WIDTH.is_multiple_of(16));
 
 /// SSE vectors (quads of rays) in a packet.
 const QUADS: usize = WIDTH / 4;
 
-/// One f32 per ray of a packet, aligned for its loads in quads (SSE) and
-/// octets (AVX2).
+/// One f32 per ray of a packet, aligned for its loads in quads (SSE),
+/// octets (AVX2) and sixteens (AVX-512).
 #[derive(Clone, Copy, Debug)]
-#[repr(C, align(32))]
+#[repr(C, align(64))]
 struct Lanes([f32; WIDTH]);
 
 impl Lanes {
@@ -313,6 +314,77 @@ fn children_avx2<const ANY_HIT: bool>(
     }
 }
 
+/// `children_sse` with AVX-512, sixteen rays at a time: the same
+/// operations lane for lane as `children_avx2` (`vminps` and `vmaxps` treat
+/// NaNs alike at every width, and `<=` is the same ordered compare, here
+/// into a mask register), so each ray gets the same answer to the bit. The
+/// nearest entry is a masked reduction over rays that passed, whose entries
+/// are never NaN, so its order does not matter.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+#[inline]
+fn children_avx512<const ANY_HIT: bool>(
+    node: &wide::Node4,
+    soa: &Soa,
+    mask: u32,
+    best_t: &Lanes,
+    out: &mut Children,
+) {
+    use std::arch::x86_64::*;
+    out.reset();
+    // SAFETY: `Lanes` is 64-byte aligned and holds `WIDTH` f32, a multiple
+    // of sixteen, as the aligned loads and stores at every sixteenth one
+    // need; the rest is arithmetic on registers.
+    unsafe {
+        let scale = _mm512_set1_ps(f32::BOX_T_SCALE);
+        let zero = _mm512_setzero_ps();
+        for g in 0..WIDTH / 16 {
+            let m16 = (mask >> (16 * g) & 0xffff) as u16;
+            if m16 == 0 {
+                continue;
+            }
+            let load = |l: &Lanes| _mm512_load_ps(l.0.as_ptr().add(16 * g));
+            let o = [load(&soa.o[0]), load(&soa.o[1]), load(&soa.o[2])];
+            let inv = [load(&soa.inv[0]), load(&soa.inv[1]), load(&soa.inv[2])];
+            let bt = load(best_t);
+            for lane in 0..4 {
+                if node.child[lane] == wide::EMPTY {
+                    continue;
+                }
+                let slab = |axis: usize| {
+                    let t0 = _mm512_mul_ps(
+                        _mm512_sub_ps(_mm512_set1_ps(node.lo[axis][lane]), o[axis]),
+                        inv[axis],
+                    );
+                    let t1 = _mm512_mul_ps(
+                        _mm512_sub_ps(_mm512_set1_ps(node.hi[axis][lane]), o[axis]),
+                        inv[axis],
+                    );
+                    (_mm512_min_ps(t0, t1), _mm512_max_ps(t0, t1))
+                };
+                let (nx, fx) = slab(0);
+                let (ny, fy) = slab(1);
+                let (nz, fz) = slab(2);
+                let t_near = _mm512_max_ps(_mm512_max_ps(nx, ny), _mm512_max_ps(nz, zero));
+                let t_far = _mm512_mul_ps(
+                    _mm512_min_ps(_mm512_min_ps(fx, fy), _mm512_min_ps(fz, bt)),
+                    scale,
+                );
+                let hit = _mm512_mask_cmp_ps_mask::<_CMP_LE_OS>(m16, t_near, t_far);
+                if hit == 0 {
+                    continue;
+                }
+                out.hits[lane] |= (hit as u32) << (16 * g);
+                if !ANY_HIT {
+                    _mm512_store_ps(out.near[lane].0.as_mut_ptr().add(16 * g), t_near);
+                    let m = _mm512_mask_reduce_min_ps(hit, t_near);
+                    out.nearest[lane] = out.nearest[lane].min(m);
+                }
+            }
+        }
+    }
+}
+
 /// A leaf block's triangles against the rays of octet `g` in `m8` that
 /// share the axis order `k`, eight rays at a time with AVX2: per ray
 /// `wide::hit_block_f32`'s operations in its order on the same values (the
@@ -486,6 +558,17 @@ pub fn traverse(
         t_max,
     };
     #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx512f") {
+        // SAFETY: the CPU has AVX-512F (and so AVX2), checked just above.
+        return unsafe {
+            if any_hit {
+                traverse_avx512::<true>(scene, query)
+            } else {
+                traverse_avx512::<false>(scene, query)
+            }
+        };
+    }
+    #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2, checked just above.
         return unsafe {
@@ -497,28 +580,42 @@ pub fn traverse(
         };
     }
     if any_hit {
-        traverse_with::<false, true>(scene, query)
+        traverse_with::<SSE, true>(scene, query)
     } else {
-        traverse_with::<false, false>(scene, query)
+        traverse_with::<SSE, false>(scene, query)
     }
 }
+
+/// `traverse_with`'s instruction sets, least first.
+const SSE: u8 = 0;
+const AVX2: u8 = 1;
+const AVX512: u8 = 2;
 
 /// `traverse_with` compiled for AVX2, so its box tests inline.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
 fn traverse_avx2<const ANY_HIT: bool>(scene: &CpuScene<f32>, query: Query) -> [Hit<f32>; WIDTH] {
-    traverse_with::<true, ANY_HIT>(scene, query)
+    traverse_with::<AVX2, ANY_HIT>(scene, query)
 }
 
-/// `traverse`, its box tests 8 rays at a time with AVX2 when `AVX2` (only
-/// ever true inside `traverse_avx2`), for blockers when `ANY_HIT`.
+/// `traverse_with` compiled for AVX-512: its box tests take sixteen rays a
+/// register, its leaf tests stay AVX2's octets.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+fn traverse_avx512<const ANY_HIT: bool>(scene: &CpuScene<f32>, query: Query) -> [Hit<f32>; WIDTH] {
+    traverse_with::<AVX512, ANY_HIT>(scene, query)
+}
+
+/// `traverse`, its box tests 8 rays at a time with AVX2 when `SIMD` is
+/// `AVX2` and 16 with AVX-512 when it is `AVX512` (only ever so inside
+/// `traverse_avx2` and `traverse_avx512`), for blockers when `ANY_HIT`.
 ///
 /// An any-hit ray's limit stays `t_max` until it is blocked and leaves, so
 /// no box it passed can later lie beyond its limit, and whether it is
 /// blocked does not depend on the order it meets leaves in: there the
 /// entry t that order and dropping need is not computed.
 #[inline(always)]
-fn traverse_with<const AVX2: bool, const ANY_HIT: bool>(
+fn traverse_with<const SIMD: u8, const ANY_HIT: bool>(
     scene: &CpuScene<f32>,
     query: Query,
 ) -> [Hit<f32>; WIDTH] {
@@ -577,9 +674,12 @@ fn traverse_with<const AVX2: bool, const ANY_HIT: bool>(
         }
         let node = &scene.wide.nodes[index as usize];
         #[cfg(target_arch = "x86_64")]
-        // SAFETY: AVX2 is only true in `traverse_avx2`, which runs only
-        // where the CPU has AVX2.
-        if AVX2 {
+        // SAFETY: SIMD is AVX512 only in `traverse_avx512`, which runs only
+        // where the CPU has AVX-512F, and AVX2 only in `traverse_avx2`,
+        // which runs only where it has AVX2.
+        if SIMD == AVX512 {
+            unsafe { children_avx512::<ANY_HIT>(node, &soa, mask, &best_t, &mut kids) }
+        } else if SIMD == AVX2 {
             unsafe { children_avx2::<ANY_HIT>(node, &soa, mask, &best_t, &mut kids) }
         } else {
             children_sse::<ANY_HIT>(node, &soa, mask, &best_t, &mut kids)
@@ -658,7 +758,7 @@ fn traverse_with<const AVX2: bool, const ANY_HIT: bool>(
                 // octet's rays where they share an axis order and enough
                 // of them came, else ray by ray.
                 #[cfg(target_arch = "x86_64")]
-                if AVX2 {
+                if SIMD >= AVX2 {
                     for (g, k) in soa.k.iter().enumerate() {
                         let m8 = rays_in >> (8 * g) & 255;
                         let Some(k) = *k else { continue };
@@ -666,8 +766,9 @@ fn traverse_with<const AVX2: bool, const ANY_HIT: bool>(
                             continue;
                         }
                         rays_in &= !(m8 << (8 * g));
-                        // SAFETY: AVX2 is only true in `traverse_avx2`,
-                        // which runs only where the CPU has AVX2.
+                        // SAFETY: SIMD is AVX2 or more only in
+                        // `traverse_avx2` and `traverse_avx512`, which run
+                        // only where the CPU has AVX2 (AVX-512F implies it).
                         let found = unsafe {
                             hit_block_octet(leaf, &soa, k, g, m8, &mut best, &mut best_t)
                         };
@@ -1041,16 +1142,22 @@ mod tests {
         assert!(ties < hits / 100, "{ties} ties");
     }
 
-    /// The AVX2 box test gives every ray what the SSE one gives it, to the
-    /// bit: which children it passes and its entry t, including rays along
-    /// an axis plane (either sign of zero) and rays with a NaN direction.
+    /// The AVX2 and AVX-512 box tests give every ray what the SSE one gives
+    /// it, to the bit: which children it passes and its entry t, including
+    /// rays along an axis plane (either sign of zero) and rays with a NaN
+    /// direction. Each is checked where the CPU has it, and says so where
+    /// it has not.
     #[test]
-    fn avx2_boxes_match_sse() {
+    fn avx_boxes_match_sse() {
         #[cfg(target_arch = "x86_64")]
         {
             if !std::arch::is_x86_feature_detected!("avx2") {
-                eprintln!("SKIPPED: avx2_boxes_match_sse: this CPU has no AVX2");
+                eprintln!("SKIPPED: avx_boxes_match_sse: this CPU has no AVX2");
                 return;
+            }
+            let avx512 = std::arch::is_x86_feature_detected!("avx512f");
+            if !avx512 {
+                eprintln!("SKIPPED: avx_boxes_match_sse's AVX-512 half: this CPU has no AVX-512F");
             }
             let (scene, bvh, geometry) = fixture(500);
             let camera = crate::camera::Camera::new(64, 48);
@@ -1058,14 +1165,29 @@ mod tests {
             let mut next = uniform(23);
             let mut passed = 0;
             for p in 0..300 {
+                let nodes = &cpu.wide.nodes;
                 let rays: [Ray<f32>; WIDTH] = std::array::from_fn(|r| {
-                    let o = Vec3::new(next(), next(), next()) * 4.0;
+                    let mut o = Vec3::new(next(), next(), next()) * 4.0;
                     let mut d = Vec3::new(next(), next(), next() - 1.0);
                     match (p + r) % 8 {
                         1 => d.x = 0.0,
                         2 => d.y = -0.0,
                         3 if p % 16 == 3 => d = Vec3::NAN,
                         _ => {}
+                    }
+                    if p % 4 == 1 {
+                        // On a box's faces: a slab's 0 * inf is NaN, whose
+                        // operand order decides what min and max give, and
+                        // a ray leaving through a face meets its box at
+                        // t_near = t_far = 0, which only `<=` passes.
+                        let node = &nodes[(next().abs() * 1e4) as usize % nodes.len()];
+                        let lane = r % 4;
+                        for axis in 0..3 {
+                            if (p / 4 + r + axis) % 3 != 0 {
+                                o[axis] = [node.lo, node.hi][(r + axis) % 2][axis][lane];
+                                d[axis] = [0.0, 1.0, -1.0][(p / 4 + axis) % 3];
+                            }
+                        }
                     }
                     let d = if d.is_nan() { d } else { d.normalize() };
                     make_ray::<f32>(o, d, 0.0)
@@ -1081,7 +1203,7 @@ mod tests {
                 let all = u32::MAX >> (32 - WIDTH);
                 let mask = if p % 3 == 0 { 0x6d6d_6d6d & all } else { all };
                 // Reused from node to node, as a traversal does.
-                let [mut a, mut b, mut c, mut d] = [0; 4].map(|_| Children::NONE);
+                let [mut a, mut b, mut c, mut d, mut e, mut f] = [0; 6].map(|_| Children::NONE);
                 for node in &cpu.wide.nodes {
                     children_sse::<false>(node, &soa, mask, &best_t, &mut a);
                     // SAFETY: the CPU has AVX2, checked above.
@@ -1093,17 +1215,29 @@ mod tests {
                     // SAFETY: as above.
                     unsafe { children_avx2::<true>(node, &soa, mask, &best_t, &mut c) };
                     assert_eq!(c.hits, a.hits);
+                    if avx512 {
+                        // SAFETY: the CPU has AVX-512F, checked above.
+                        unsafe {
+                            children_avx512::<false>(node, &soa, mask, &best_t, &mut e);
+                            children_avx512::<true>(node, &soa, mask, &best_t, &mut f);
+                        }
+                    } else {
+                        (e.hits, e.near, e.nearest) = (a.hits, a.near, a.nearest);
+                        f.hits = a.hits;
+                    }
+                    assert_eq!(e.hits, a.hits);
+                    assert_eq!(f.hits, a.hits);
                     for lane in 0..4 {
                         for r in 0..WIDTH {
                             if a.hits[lane] & (1 << r) != 0 {
-                                assert_eq!(
-                                    a.near[lane].0[r].to_bits(),
-                                    b.near[lane].0[r].to_bits()
-                                );
+                                let near = a.near[lane].0[r].to_bits();
+                                assert_eq!(near, b.near[lane].0[r].to_bits());
+                                assert_eq!(near, e.near[lane].0[r].to_bits());
                             }
                         }
                         if a.hits[lane] != 0 {
                             assert_eq!(a.nearest[lane].to_bits(), b.nearest[lane].to_bits());
+                            assert_eq!(a.nearest[lane].to_bits(), e.nearest[lane].to_bits());
                         }
                         passed += a.hits[lane].count_ones();
                     }
