@@ -577,7 +577,7 @@ impl Renderer {
                 need.check(memory::available())?;
                 let start = Instant::now();
                 let options = self.cpu_options(p, *precision);
-                let (framebuffer, rays) = cpu::render_where(
+                let (framebuffer, work) = cpu::render_where(
                     scene,
                     &p.bvh,
                     geometry,
@@ -587,8 +587,11 @@ impl Renderer {
                     progress,
                 );
                 timings.add("cpu render", start.elapsed());
-                timings.count(crate::timing::CLOSEST_RAYS, rays[0]);
-                timings.count(crate::timing::SHADOW_RAYS, rays[1]);
+                timings.count(crate::timing::CLOSEST_RAYS, work.rays[0]);
+                timings.count(crate::timing::SHADOW_RAYS, work.rays[1]);
+                if let Some(t) = work.cpu_time {
+                    timings.count(crate::timing::CPU_TIME_NS, t.as_nanos() as u64);
+                }
                 framebuffer
             }
             // `pack` makes each engine its own.

@@ -11,6 +11,28 @@ pub const SHADOW_RAYS: &str = "shadow rays";
 /// Nanoseconds the device spent in a render's dispatches, from Vulkan
 /// timestamps around each (absent where the queue has none).
 pub const GPU_TIME_NS: &str = "gpu ns";
+/// Nanoseconds of CPU time a CPU render's threads spent on its pixels,
+/// summed over the threads (absent where the system cannot say). Unlike
+/// wall time it leaves out what the machine took elsewhere: time the
+/// threads waited for a core, and a virtual machine's stolen time.
+pub const CPU_TIME_NS: &str = "cpu ns";
+
+/// The CPU time the calling thread has run for (steal excluded where the
+/// kernel accounts it), or None where the system has no such clock.
+pub fn thread_cpu_time() -> Option<Duration> {
+    #[cfg(unix)]
+    {
+        let mut ts = libc::timespec {
+            tv_sec: 0,
+            tv_nsec: 0,
+        };
+        // SAFETY: `ts` is a valid timespec for the call to write.
+        let ok = unsafe { libc::clock_gettime(libc::CLOCK_THREAD_CPUTIME_ID, &mut ts) } == 0;
+        ok.then(|| Duration::new(ts.tv_sec as u64, ts.tv_nsec as u32))
+    }
+    #[cfg(not(unix))]
+    None
+}
 
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Timings {
@@ -95,5 +117,37 @@ impl fmt::Display for Timings {
             write!(f, "\n  {name:<10} {n:>10}")?;
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The thread clock moves with this thread's work, no faster than the
+    /// wall clock, and not while the thread sleeps.
+    #[test]
+    fn thread_cpu_time_counts_this_threads_work() {
+        let Some(start) = thread_cpu_time() else {
+            if cfg!(unix) {
+                panic!("no thread CPU clock where unix has one");
+            }
+            eprintln!("SKIPPED: thread_cpu_time_counts_this_threads_work: no thread CPU clock");
+            return;
+        };
+        let wall = Instant::now();
+        let mut x = 1u64;
+        while wall.elapsed() < Duration::from_millis(30) {
+            x = std::hint::black_box(x.wrapping_mul(6_364_136_223_846_793_005).wrapping_add(1));
+        }
+        let busy = thread_cpu_time().expect("the clock stays") - start;
+        assert!(busy > Duration::ZERO && busy <= wall.elapsed(), "{busy:?}");
+        let before_sleep = thread_cpu_time().expect("the clock stays");
+        std::thread::sleep(Duration::from_millis(50));
+        let asleep = thread_cpu_time().expect("the clock stays") - before_sleep;
+        assert!(
+            asleep < Duration::from_millis(20),
+            "{asleep:?} while asleep"
+        );
     }
 }

@@ -54,8 +54,8 @@ fn assert_packets_agree(name: &str, scene: &Scene, camera: &Camera, methods: Met
                 &|_, _| {},
             )
         };
-        let (alone, alone_rays) = render(false);
-        let (packed, packed_rays) = render(true);
+        let (alone, alone_work) = render(false);
+        let (packed, packed_work) = render(true);
         let width = camera.width as usize;
         let differ: Vec<usize> = (0..alone.pixels.len())
             .filter(|&i| alone.pixels[i] != packed.pixels[i])
@@ -108,7 +108,7 @@ fn assert_packets_agree(name: &str, scene: &Scene, camera: &Camera, methods: Met
                 differ.len()
             ));
         }
-        assert_eq!(alone_rays, packed_rays, "{name}: rays cast");
+        assert_eq!(alone_work.rays, packed_work.rays, "{name}: rays cast");
     }
 }
 

@@ -13,6 +13,7 @@ use crate::cpu::Precision;
 use crate::gpu::DeviceSelector;
 use crate::render::{Backend, RenderOptions, Renderer};
 use crate::scene::read_scene;
+use crate::timing::CPU_TIME_NS;
 use crate::Error;
 
 #[derive(Clone, Debug)]
@@ -46,6 +47,12 @@ pub struct SceneResult {
     pub gpu: Option<Stat>,
     pub cpu_f32: Option<Stat>,
     pub cpu_f64: Option<Stat>,
+    /// The CPU renders' thread CPU time (`timing::CPU_TIME_NS`) per
+    /// render, where the system reports it: what the wall times above
+    /// leave in (time the threads waited for a core, a virtual machine's
+    /// stolen time) it leaves out.
+    pub cpu_f32_time: Option<Stat>,
+    pub cpu_f64_time: Option<Stat>,
 }
 
 #[derive(Clone, Debug)]
@@ -118,6 +125,8 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
             gpu: None,
             cpu_f32: None,
             cpu_f64: None,
+            cpu_f32_time: None,
+            cpu_f64_time: None,
             rays: None,
         };
         if let Some(r) = &gpu {
@@ -135,9 +144,19 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
             })?;
             progress(&format!("{name}: gpu {:.1} ms", ms(result.gpu)));
         }
-        for (renderer, slot, label) in [
-            (cpu_f32.as_ref(), &mut result.cpu_f32, "f32"),
-            (cpu_f64.as_ref(), &mut result.cpu_f64, "f64"),
+        for (renderer, slot, time_slot, label) in [
+            (
+                cpu_f32.as_ref(),
+                &mut result.cpu_f32,
+                &mut result.cpu_f32_time,
+                "f32",
+            ),
+            (
+                cpu_f64.as_ref(),
+                &mut result.cpu_f64,
+                &mut result.cpu_f64_time,
+                "f64",
+            ),
         ] {
             if let Some(r) = renderer {
                 let ready = r.prepare_scene(&scene);
@@ -145,12 +164,18 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
                     .pack
                     .extend(ready.timings.phase("pack").map(|d| (label, d)));
                 let mut rays = None;
+                let mut times = Vec::with_capacity(n);
                 *slot = repeat(n, || {
                     let out = r.render_prepared_scene(&scene, &ready, &|_, _| {})?;
                     rays = out.timings.rays();
+                    if out.timings.has_count(CPU_TIME_NS) {
+                        times.push(Duration::from_nanos(out.timings.counted(CPU_TIME_NS)));
+                    }
                     Ok(())
                 })?;
                 result.rays = rays.or(result.rays);
+                // All or nothing: a median of some renders would mislead.
+                *time_slot = (times.len() == n).then(|| Stat::of(times)).flatten();
                 progress(&format!("{name}: {} {:.1} ms", r.name(), ms(*slot)));
             }
         }
@@ -218,6 +243,15 @@ impl BenchReport {
             ),
             _ => cell(s),
         };
+        // The CPU column's wall time, then its threads' CPU time.
+        let cpu_cell = |s: Option<Stat>, time: Option<Stat>, rays: Option<u64>| match time {
+            Some(t) => format!(
+                "{} · CPU {:.1} ms",
+                timed(s, rays),
+                t.median.as_secs_f64() * 1e3
+            ),
+            None => timed(s, rays),
+        };
         let _ = writeln!(
             out,
             "{}x{}, median of {} runs (min-max), milliseconds; CPU reference on {} threads",
@@ -247,8 +281,8 @@ impl BenchReport {
                 cell(Some(s.bvh)),
                 pack(&s.pack),
                 timed(s.gpu, s.rays),
-                timed(s.cpu_f32, s.rays),
-                timed(s.cpu_f64, s.rays)
+                cpu_cell(s.cpu_f32, s.cpu_f32_time, s.rays),
+                cpu_cell(s.cpu_f64, s.cpu_f64_time, s.rays)
             );
         }
         out

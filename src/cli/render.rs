@@ -509,6 +509,12 @@ fn stats(output: &glint::render::RenderOutput, timings: &glint::timing::Timings)
             timings.counted(glint::timing::GPU_TIME_NS) as f64 / 1e6
         ));
     }
+    if timings.has_count(glint::timing::CPU_TIME_NS) {
+        s.push_str(&format!(
+            "\n  cpu time    {:.3} ms on the render's threads, all together",
+            timings.counted(glint::timing::CPU_TIME_NS) as f64 / 1e6
+        ));
+    }
     s.push_str(&format!("\n  samples     {}", output.samples));
     s.push_str(&format!("\n  bvh         {}", output.bvh));
     for (name, d) in &timings.phases {

@@ -10,6 +10,8 @@ pub mod wide;
 
 pub use real::Real;
 
+use std::time::Duration;
+
 use rayon::prelude::*;
 
 use crate::bvh::Bvh;
@@ -83,8 +85,8 @@ pub fn render(
 }
 
 /// As `render`, only the pixels `keep` says (the others are 0): the CPU
-/// twin of the GPU's `render_rects`. Also returns the closest-hit and
-/// shadow rays cast. `geometry` is `prepare`'s for this scene and BVH; its
+/// twin of the GPU's `render_rects`. Also returns the rays cast and the
+/// threads' CPU time (`Work`). `geometry` is `prepare`'s for this scene and BVH; its
 /// precision is the render's.
 pub fn render_where(
     scene: &Scene,
@@ -94,12 +96,12 @@ pub fn render_where(
     options: &CpuOptions,
     keep: &(dyn Fn(u32, u32) -> bool + Sync),
     progress: &(dyn Fn(u64, u64) + Sync),
-) -> (Framebuffer, [u64; 2]) {
+) -> (Framebuffer, Work) {
     fn colour<R: Real>(s: &CpuScene<R>, x: u32, y: u32) -> [f32; 3] {
         R::v3_to_f32(R::clamp01(pixel_color(s, x, y)))
     }
     let pixel = |x: u32, y: u32, f: &dyn Fn() -> [f32; 3]| if keep(x, y) { f() } else { [0.0; 3] };
-    let (pixels, rays) = match geometry {
+    let (pixels, work) = match geometry {
         Geometry::F32(g) => {
             let s = CpuScene::new(scene, bvh, g, camera, options);
             if options.packets && packet::applies(&s) {
@@ -120,7 +122,17 @@ pub fn render_where(
         height: camera.height,
         pixels,
     };
-    (fb, rays)
+    (fb, work)
+}
+
+/// What a render's threads did besides their pixels.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Work {
+    /// Closest-hit and shadow rays cast.
+    pub rays: [u64; 2],
+    /// CPU time the threads spent on the pixels, summed over threads
+    /// (`timing::thread_cpu_time`); None where the system cannot say.
+    pub cpu_time: Option<Duration>,
 }
 
 /// A scene's primitives and wide tree as the CPU reference reads them, in
@@ -236,12 +248,12 @@ fn path_in<R: Real>(scene: &CpuScene<R>, [x, y]: [u32; 2]) -> PathRecord {
 }
 
 /// `f(scene, x, y)` for every pixel, rows in parallel (`per_band`). Also
-/// returns the closest-hit and shadow rays `f` cast.
+/// returns what the threads did (`Work`).
 fn per_pixel<R: Real, T: Send + Default + Clone>(
     scene: &CpuScene<R>,
     progress: &(dyn Fn(u64, u64) + Sync),
     f: impl Fn(&CpuScene<R>, u32, u32) -> T + Sync,
-) -> (Vec<T>, [u64; 2]) {
+) -> (Vec<T>, Work) {
     let w = scene.size[0] as usize;
     per_band(scene, progress, 1, |scene, y, row| {
         for (x, px) in row[..w].iter_mut().enumerate() {
@@ -255,18 +267,20 @@ fn per_pixel<R: Real, T: Send + Default + Clone>(
 /// taken in `spread_order` so that `progress(rows_done, rows)` advances at
 /// an even pace: rows in order would finish the cheap sky first and the
 /// costly floor last, and an ETA from them would be wrong by the ratio.
-/// Also returns the closest-hit and shadow rays `f` cast.
+/// Also returns the rays `f` cast and the threads' CPU time (`Work`).
 fn per_band<R: Real, T: Send + Default + Clone>(
     scene: &CpuScene<R>,
     progress: &(dyn Fn(u64, u64) + Sync),
     rows: u32,
     f: impl Fn(&CpuScene<R>, u32, &mut [T]) + Sync,
-) -> (Vec<T>, [u64; 2]) {
+) -> (Vec<T>, Work) {
     use std::sync::atomic::{AtomicU64, Ordering};
     let [w, h] = scene.size;
     let rows = rows.max(1);
     let done = AtomicU64::new(0);
     let rays = [AtomicU64::new(0), AtomicU64::new(0)];
+    let cpu_ns = AtomicU64::new(0);
+    let cpu_known = std::sync::atomic::AtomicBool::new(true);
     let mut out = vec![T::default(); w as usize * h as usize];
     let mut bands: Vec<Option<&mut [T]>> = out
         .chunks_mut((w * rows).max(1) as usize)
@@ -280,8 +294,15 @@ fn per_band<R: Real, T: Send + Default + Clone>(
         // A band runs on one thread from start to end, so the thread's
         // counters moved by this band's rays alone.
         let before = trace::rays_cast();
+        let started = crate::timing::thread_cpu_time();
         let n = band.len() as u64 / u64::from(w.max(1));
         f(scene, y0, band);
+        match (started, crate::timing::thread_cpu_time()) {
+            (Some(a), Some(b)) => {
+                cpu_ns.fetch_add(b.saturating_sub(a).as_nanos() as u64, Ordering::Relaxed);
+            }
+            _ => cpu_known.store(false, Ordering::Relaxed),
+        }
         let after = trace::rays_cast();
         for k in 0..2 {
             rays[k].fetch_add(after[k] - before[k], Ordering::Relaxed);
@@ -289,7 +310,13 @@ fn per_band<R: Real, T: Send + Default + Clone>(
         let finished = done.fetch_add(n, Ordering::Relaxed) + n;
         progress(finished, u64::from(h));
     });
-    (out, rays.map(AtomicU64::into_inner))
+    let work = Work {
+        rays: rays.map(AtomicU64::into_inner),
+        cpu_time: cpu_known
+            .into_inner()
+            .then(|| Duration::from_nanos(cpu_ns.into_inner())),
+    };
+    (out, work)
 }
 
 /// The rows 0..n in an order whose every stretch is spread over the whole
@@ -317,6 +344,46 @@ pub fn spread_order(n: u32) -> Vec<u32> {
 #[cfg(test)]
 mod tests {
     use super::spread_order;
+
+    /// A render says how much CPU time its threads spent where the system
+    /// has a thread clock: some, and no more than all its threads could
+    /// have run in the wall time it took; and the rays it counted.
+    #[test]
+    fn a_render_reports_its_threads_cpu_time() {
+        let scene = super::wide::tests::scene(300);
+        let bvh = crate::bvh::Bvh::build(&scene);
+        let camera = crate::camera::Camera::new(64, 48);
+        for packets in [true, false] {
+            let options = super::CpuOptions {
+                packets,
+                ..Default::default()
+            };
+            let geometry = super::prepare(&scene, &bvh, &options);
+            let wall = std::time::Instant::now();
+            let (_, work) = super::render_where(
+                &scene,
+                &bvh,
+                &geometry,
+                &camera,
+                &options,
+                &|_, _| true,
+                &|_, _| {},
+            );
+            let wall = wall.elapsed();
+            assert!(work.rays[0] >= 64 * 48, "{:?}", work.rays);
+            match work.cpu_time {
+                Some(t) => {
+                    let threads = rayon::current_num_threads() as u32;
+                    assert!(
+                        t > std::time::Duration::ZERO && t <= wall * threads,
+                        "{t:?} in {wall:?}"
+                    );
+                }
+                None if cfg!(unix) => panic!("no CPU time where unix has a thread clock"),
+                None => {}
+            }
+        }
+    }
 
     /// Each row once, and any stretch of the order is spread evenly: the
     /// first eighth of the work touches every eighth of the image.
