@@ -233,6 +233,30 @@ fn children_sse<const ANY_HIT: bool>(
     }
 }
 
+/// One child box (`lane` of `node`) against a register of rays (origins
+/// `o`, inverse directions `inv`, limits `bt`), as `(t_near, t_far)`:
+/// `children_sse`'s arithmetic, in the intrinsics of the register's width
+/// (broadcast, sub, mul, min, max), for the AVX2 and AVX-512 tests alike.
+/// A macro, not a function over the intrinsics, so that each expands inside
+/// its caller's `target_feature` and inlines as written.
+#[cfg(target_arch = "x86_64")]
+macro_rules! box_entry_exit {
+    ($node:expr, $lane:expr, $o:expr, $inv:expr, $bt:expr, $zero:expr, $scale:expr;
+     $set1:ident, $sub:ident, $mul:ident, $min:ident, $max:ident) => {{
+        let slab = |axis: usize| {
+            let t0 = $mul($sub($set1($node.lo[axis][$lane]), $o[axis]), $inv[axis]);
+            let t1 = $mul($sub($set1($node.hi[axis][$lane]), $o[axis]), $inv[axis]);
+            ($min(t0, t1), $max(t0, t1))
+        };
+        let (nx, fx) = slab(0);
+        let (ny, fy) = slab(1);
+        let (nz, fz) = slab(2);
+        let t_near = $max($max(nx, ny), $max(nz, $zero));
+        let t_far = $mul($min($min(fx, fy), $min(fz, $bt)), $scale);
+        (t_near, t_far)
+    }};
+}
+
 /// `children_sse` with AVX2, eight rays at a time: the same operations
 /// lane for lane (`_mm256_min_ps` and `_mm256_max_ps` take their operands
 /// in `Vec4::min`'s and `max`'s order, so NaNs fall the same way; `<=` is
@@ -270,24 +294,9 @@ fn children_avx2<const ANY_HIT: bool>(
                 if node.child[lane] == wide::EMPTY {
                     continue;
                 }
-                let slab = |axis: usize| {
-                    let t0 = _mm256_mul_ps(
-                        _mm256_sub_ps(_mm256_set1_ps(node.lo[axis][lane]), o[axis]),
-                        inv[axis],
-                    );
-                    let t1 = _mm256_mul_ps(
-                        _mm256_sub_ps(_mm256_set1_ps(node.hi[axis][lane]), o[axis]),
-                        inv[axis],
-                    );
-                    (_mm256_min_ps(t0, t1), _mm256_max_ps(t0, t1))
-                };
-                let (nx, fx) = slab(0);
-                let (ny, fy) = slab(1);
-                let (nz, fz) = slab(2);
-                let t_near = _mm256_max_ps(_mm256_max_ps(nx, ny), _mm256_max_ps(nz, zero));
-                let t_far = _mm256_mul_ps(
-                    _mm256_min_ps(_mm256_min_ps(fx, fy), _mm256_min_ps(fz, bt)),
-                    scale,
+                let (t_near, t_far) = box_entry_exit!(
+                    node, lane, o, inv, bt, zero, scale;
+                    _mm256_set1_ps, _mm256_sub_ps, _mm256_mul_ps, _mm256_min_ps, _mm256_max_ps
                 );
                 let passed = _mm256_cmp_ps::<_CMP_LE_OS>(t_near, t_far);
                 let hit = _mm256_movemask_ps(passed) as u32 & m8;
@@ -351,24 +360,9 @@ fn children_avx512<const ANY_HIT: bool>(
                 if node.child[lane] == wide::EMPTY {
                     continue;
                 }
-                let slab = |axis: usize| {
-                    let t0 = _mm512_mul_ps(
-                        _mm512_sub_ps(_mm512_set1_ps(node.lo[axis][lane]), o[axis]),
-                        inv[axis],
-                    );
-                    let t1 = _mm512_mul_ps(
-                        _mm512_sub_ps(_mm512_set1_ps(node.hi[axis][lane]), o[axis]),
-                        inv[axis],
-                    );
-                    (_mm512_min_ps(t0, t1), _mm512_max_ps(t0, t1))
-                };
-                let (nx, fx) = slab(0);
-                let (ny, fy) = slab(1);
-                let (nz, fz) = slab(2);
-                let t_near = _mm512_max_ps(_mm512_max_ps(nx, ny), _mm512_max_ps(nz, zero));
-                let t_far = _mm512_mul_ps(
-                    _mm512_min_ps(_mm512_min_ps(fx, fy), _mm512_min_ps(fz, bt)),
-                    scale,
+                let (t_near, t_far) = box_entry_exit!(
+                    node, lane, o, inv, bt, zero, scale;
+                    _mm512_set1_ps, _mm512_sub_ps, _mm512_mul_ps, _mm512_min_ps, _mm512_max_ps
                 );
                 let hit = _mm512_mask_cmp_ps_mask::<_CMP_LE_OS>(m16, t_near, t_far);
                 if hit == 0 {
