@@ -273,9 +273,9 @@ fn children_avx2<const ANY_HIT: bool>(
 ) {
     use std::arch::x86_64::*;
     out.reset();
-    // SAFETY: `Lanes` is 32-byte aligned and holds `WIDTH` f32, a multiple of
-    // eight, as the aligned loads and stores at every eighth one need; the
-    // rest is arithmetic on registers.
+    // SAFETY: `Lanes` is 64-byte aligned (32 would do here) and holds
+    // `WIDTH` f32, a multiple of eight, as the aligned loads and stores at
+    // every eighth one need; the rest is arithmetic on registers.
     unsafe {
         let scale = _mm256_set1_ps(f32::BOX_T_SCALE);
         let zero = _mm256_setzero_ps();
@@ -407,8 +407,9 @@ fn hit_block_octet(
     let mut b1_out = [0.0f32; 8];
     let mut b2_out = [0.0f32; 8];
     let mut which = [0i32; 8];
-    // SAFETY: `Lanes` is 32-byte aligned and holds `WIDTH` f32, a multiple
-    // of eight, as the aligned loads at every eighth one need; the outputs
+    // SAFETY: `Lanes` is 64-byte aligned (32 would do here) and holds
+    // `WIDTH` f32, a multiple of eight, as the aligned loads at every
+    // eighth one need; the outputs
     // are eight lanes each, written unaligned; the rest is arithmetic on
     // registers.
     let found = unsafe {
