@@ -1047,6 +1047,8 @@ fn traverse(ray: Ray, t_max: f32, any_hit: bool) -> Hit {
                 word = prim_refs_u[r >> 2u][r & 3u];
             } else {
                 if (ADDRESSES) {
+                    // Unclamped: the loop's condition bounds r by the
+                    // binding's length.
                     word = device_load1(list_address(3u), r);
                 } else {
                     word = prim_refs[r];

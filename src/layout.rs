@@ -708,6 +708,8 @@ pub fn padded<T: Pod + Default>(items: &[T]) -> std::borrow::Cow<'_, [u8]> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::cpu::wide::{collapse_nodes, tests::scene, Node4};
+    use glam::Vec4;
 
     #[test]
     fn a_list_address_is_low_then_high_word_two_lists_to_an_element() {
@@ -719,8 +721,6 @@ mod tests {
             [[0; 4], [0, 0, 0x9abc_def0, 0x1234_5678], [7, 0, 0, 0]]
         );
     }
-    use crate::cpu::wide::{collapse_nodes, tests::scene, Node4};
-    use glam::Vec4;
 
     /// (low, high) of each lane's box by axis, as the shader decodes them.
     fn decoded(g: &GpuWideNode) -> [[(f32, f32); 4]; 3] {

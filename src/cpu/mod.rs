@@ -280,7 +280,6 @@ fn per_band<R: Real, T: Send + Default + Clone>(
     let done = AtomicU64::new(0);
     let rays = [AtomicU64::new(0), AtomicU64::new(0)];
     let cpu_ns = AtomicU64::new(0);
-    let cpu_known = std::sync::atomic::AtomicBool::new(true);
     let mut out = vec![T::default(); w as usize * h as usize];
     let mut bands: Vec<Option<&mut [T]>> = out
         .chunks_mut((w * rows).max(1) as usize)
@@ -297,11 +296,8 @@ fn per_band<R: Real, T: Send + Default + Clone>(
         let started = crate::timing::thread_cpu_time();
         let n = band.len() as u64 / u64::from(w.max(1));
         f(scene, y0, band);
-        match (started, crate::timing::thread_cpu_time()) {
-            (Some(a), Some(b)) => {
-                cpu_ns.fetch_add(b.saturating_sub(a).as_nanos() as u64, Ordering::Relaxed);
-            }
-            _ => cpu_known.store(false, Ordering::Relaxed),
+        if let (Some(a), Some(b)) = (started, crate::timing::thread_cpu_time()) {
+            cpu_ns.fetch_add(b.saturating_sub(a).as_nanos() as u64, Ordering::Relaxed);
         }
         let after = trace::rays_cast();
         for k in 0..2 {
@@ -312,9 +308,9 @@ fn per_band<R: Real, T: Send + Default + Clone>(
     });
     let work = Work {
         rays: rays.map(AtomicU64::into_inner),
-        cpu_time: cpu_known
-            .into_inner()
-            .then(|| Duration::from_nanos(cpu_ns.into_inner())),
+        // The clock is the system's: there for every band or for none.
+        cpu_time: crate::timing::thread_cpu_time()
+            .map(|_| Duration::from_nanos(cpu_ns.into_inner())),
     };
     (out, work)
 }

@@ -67,7 +67,7 @@ pub enum Lists {
     /// The plain bindings, and uniform copies of spheres, triangles and
     /// nodes (`layout::UNIFORM_LISTS`), which the shader reads instead.
     Uniform,
-    /// The plain bindings; the shader reads the `layout::UNIFORM_LISTS`
+    /// The plain bindings; the shader reads the `layout::ADDRESS_LISTS`
     /// through their device addresses (`GpuFrame::addresses`) instead.
     Address,
 }
