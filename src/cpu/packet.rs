@@ -713,10 +713,8 @@ fn traverse_with<const SIMD: u8, const ANY_HIT: bool>(
                 // Indexed with a bounds check: `wide::STACK` bounds the depth.
                 stack[len] = std::mem::MaybeUninit::new((child, hits[lane], nearest[lane]));
                 len += 1;
-                prefetch(&scene.wide.nodes[child as usize]);
-                for block in &scene.wide.leaves[node.leaf_run(lane)] {
-                    prefetch(block);
-                }
+                prefetch(std::slice::from_ref(&scene.wide.nodes[child as usize]));
+                prefetch(&scene.wide.leaves[node.leaf_run(lane)]);
             }
         }
         // Leaves are tested as they come, nearest first.
@@ -839,23 +837,27 @@ fn traverse_with<const SIMD: u8, const ANY_HIT: bool>(
     best
 }
 
-/// Starts loading what will be read soon: every cache line of `item`.
+/// Starts loading what will be read soon: every cache line `items` (side
+/// by side in memory) touch, with a counted loop over the lines (a
+/// `step_by` per item took a twentieth of the traversal's instructions on
+/// the 240k grid, by cachegrind).
 #[inline(always)]
-fn prefetch<T>(item: &T) {
+fn prefetch<T>(items: &[T]) {
     #[cfg(target_arch = "x86_64")]
     {
         use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        // Every line from the one holding the first byte to the one holding
-        // the last: an item need not start on a line.
-        let start = item as *const T as usize;
-        let end = start + std::mem::size_of::<T>();
-        for line in (start & !63..end).step_by(64) {
+        let range = items.as_ptr_range();
+        // From the line holding the first byte to the one holding the
+        // last: an item need not start on a line.
+        let mut line = range.start as usize & !63;
+        while line < range.end as usize {
             // SAFETY: prefetching has no effect on memory, and never faults.
             unsafe { _mm_prefetch(line as *const i8, _MM_HINT_T0) };
+            line += 64;
         }
     }
     #[cfg(not(target_arch = "x86_64"))]
-    let _ = item;
+    let _ = items;
 }
 
 /// `trace::make_ray` (at time 0) for a packet's rays, their divisions four
