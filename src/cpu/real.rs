@@ -109,6 +109,40 @@ pub trait Real:
     }
 }
 
+/// `Real::offset_ray` one coordinate at a time, as the free function
+/// `$name`: f64's, and f32's off x86-64 (and there the definition that
+/// `offset_ray_sse2` must match).
+macro_rules! scalar_offset_ray {
+    ($name:ident, $t:ty, $v:ty, $i:ty) => {
+        fn $name(p: $v, n: $v, scale: $v) -> $v {
+            let off = |p: $t, n: $t, scale: $t| -> $t {
+                // Truncation toward zero, as the shader's vec3<i32>(f32).
+                let of_i = (<$t>::OFFSET_INT_SCALE * n) as $i;
+                let bits = p.to_bits() as $i;
+                let moved = if p < 0.0 {
+                    bits.wrapping_sub(of_i)
+                } else {
+                    bits.wrapping_add(of_i)
+                };
+                if p.abs() < <$t>::OFFSET_ORIGIN * scale {
+                    p + <$t>::OFFSET_FLOAT_SCALE * scale * n
+                } else {
+                    <$t>::from_bits(moved as _)
+                }
+            };
+            <$v>::new(
+                off(p.x, n.x, scale.x),
+                off(p.y, n.y, scale.y),
+                off(p.z, n.z, scale.z),
+            )
+        }
+    };
+}
+
+scalar_offset_ray!(offset_ray_f64, f64, DVec3, i64);
+#[cfg(any(test, not(target_arch = "x86_64")))]
+scalar_offset_ray!(offset_ray_f32_scalar, f32, Vec3, i32);
+
 macro_rules! impl_real {
     ($t:ty, $v:ty, $i:ty, $eps_ratio:expr $(, $extra:item)*) => {
         impl Real for $t {
@@ -205,28 +239,6 @@ macro_rules! impl_real {
             fn vabs(v: $v) -> $v {
                 v.abs()
             }
-            fn offset_ray(p: $v, n: $v, scale: $v) -> $v {
-                let off = |p: $t, n: $t, scale: $t| -> $t {
-                    // Truncation toward zero, as the shader's vec3<i32>(f32).
-                    let of_i = (Self::OFFSET_INT_SCALE * n) as $i;
-                    let bits = p.to_bits() as $i;
-                    let moved = if p < 0.0 {
-                        bits.wrapping_sub(of_i)
-                    } else {
-                        bits.wrapping_add(of_i)
-                    };
-                    if p.abs() < Self::OFFSET_ORIGIN * scale {
-                        p + Self::OFFSET_FLOAT_SCALE * scale * n
-                    } else {
-                        <$t>::from_bits(moved as _)
-                    }
-                };
-                <$v>::new(
-                    off(p.x, n.x, scale.x),
-                    off(p.y, n.y, scale.y),
-                    off(p.z, n.z, scale.z),
-                )
-            }
         }
     };
 }
@@ -236,6 +248,13 @@ impl_real!(
     Vec3,
     i32,
     1.0,
+    #[inline(always)]
+    fn offset_ray(p: Vec3, n: Vec3, scale: Vec3) -> Vec3 {
+        #[cfg(target_arch = "x86_64")]
+        return offset_ray_sse2(p, n, scale);
+        #[cfg(not(target_arch = "x86_64"))]
+        return offset_ray_f32_scalar(p, n, scale);
+    },
     #[inline(always)]
     fn hit_boxes(ray: &Ray<f32>, node: &Node4, t_max: f32) -> (u32, [f32; 4]) {
         super::wide::hit_boxes_f32(ray.origin, ray.inv_dir, node, t_max, Self::BOX_T_SCALE)
@@ -252,7 +271,127 @@ impl_real!(
     i64,
     (f64::EPSILON / f32::EPSILON as f64),
     #[inline(always)]
+    fn offset_ray(p: DVec3, n: DVec3, scale: DVec3) -> DVec3 {
+        offset_ray_f64(p, n, scale)
+    },
+    #[inline(always)]
     fn hit_boxes(ray: &Ray<f64>, node: &Node4, t_max: f64) -> (u32, [f64; 4]) {
         super::wide::hit_boxes_f64(ray.origin, ray.inv_dir, node, t_max, Self::BOX_T_SCALE)
     }
 );
+
+/// f32's `offset_ray`, the three coordinates in one SSE2 register: per
+/// coordinate the scalar version's operations on the same values (its
+/// saturating `as i32` included), so the same bits, in a third of the
+/// instructions (it ran once a shadow ray, 86 instructions a call by
+/// cachegrind, a twentieth of a 240k-grid render's).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn offset_ray_sse2(p: Vec3, n: Vec3, scale: Vec3) -> Vec3 {
+    use std::arch::x86_64::*;
+    // SAFETY: SSE2 is part of x86-64; the rest is arithmetic on registers.
+    unsafe {
+        let [p, n, s] = [p, n, scale].map(|v| _mm_setr_ps(v.x, v.y, v.z, 0.0));
+        let of = _mm_mul_ps(_mm_set1_ps(f32::OFFSET_INT_SCALE), n);
+        // `as i32`: NaN to 0 and 2^31 or more to i32::MAX, where the
+        // conversion gives i32::MIN (as `as` does below -2^31).
+        let of_i = _mm_cvttps_epi32(of);
+        let big = _mm_castps_si128(_mm_cmpge_ps(of, _mm_set1_ps(2_147_483_648.0)));
+        let of_i = _mm_or_si128(
+            _mm_andnot_si128(big, of_i),
+            _mm_and_si128(big, _mm_set1_epi32(i32::MAX)),
+        );
+        let of_i = _mm_andnot_si128(_mm_castps_si128(_mm_cmpunord_ps(of, of)), of_i);
+        // Wrapping add, or subtract where p < 0 (not for -0.0): the
+        // negation of x is (x ^ -1) + 1.
+        let neg = _mm_castps_si128(_mm_cmplt_ps(p, _mm_setzero_ps()));
+        let step = _mm_sub_epi32(_mm_xor_si128(of_i, neg), neg);
+        let moved = _mm_castsi128_ps(_mm_add_epi32(_mm_castps_si128(p), step));
+        let abs = _mm_andnot_ps(_mm_set1_ps(-0.0), p);
+        let near_origin = _mm_cmplt_ps(abs, _mm_mul_ps(_mm_set1_ps(f32::OFFSET_ORIGIN), s));
+        let float = _mm_add_ps(
+            p,
+            _mm_mul_ps(_mm_mul_ps(_mm_set1_ps(f32::OFFSET_FLOAT_SCALE), s), n),
+        );
+        let out = _mm_or_ps(
+            _mm_and_ps(near_origin, float),
+            _mm_andnot_ps(near_origin, moved),
+        );
+        let mut lanes = [0.0f32; 4];
+        _mm_storeu_ps(lanes.as_mut_ptr(), out);
+        Vec3::new(lanes[0], lanes[1], lanes[2])
+    }
+}
+
+#[cfg(all(test, target_arch = "x86_64"))]
+mod tests {
+    use glam::Vec3;
+
+    /// The SSE2 offset gives the scalar one's bits on ordinary points and
+    /// normals and on every special value a coordinate can hold: zeros of
+    /// both signs, subnormals, the largest floats, infinities, NaN, and
+    /// normals whose offset overflows an i32 either way.
+    #[test]
+    fn sse2_offset_is_the_scalar_offset_to_the_bit() {
+        let specials = [
+            0.0,
+            -0.0,
+            1e-40,
+            -1e-40,
+            f32::MIN_POSITIVE,
+            0.03,
+            -0.03,
+            1.0,
+            -1.0,
+            0.5,
+            3.0e7,
+            -3.0e7,
+            1e10,
+            -1e10,
+            f32::MAX,
+            f32::MIN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::NAN,
+        ];
+        let mut state = 0x1234_5678u32;
+        let mut next = move || {
+            state ^= state << 13;
+            state ^= state >> 17;
+            state ^= state << 5;
+            state
+        };
+        let mut cases = Vec::new();
+        for &a in &specials {
+            for &b in &specials {
+                cases.push((
+                    Vec3::new(a, b, -a),
+                    Vec3::new(b, a, 0.7),
+                    Vec3::new(a.abs(), 1.0, b.abs()),
+                ));
+            }
+        }
+        for _ in 0..100_000 {
+            // Any bit pattern, then values of ordinary size.
+            let mut v = || {
+                Vec3::new(
+                    f32::from_bits(next()),
+                    f32::from_bits(next()),
+                    f32::from_bits(next()),
+                )
+            };
+            cases.push((v(), v(), v()));
+            let mut w = || (next() as f32 / u32::MAX as f32 - 0.5) * 200.0;
+            let n = Vec3::new(w(), w(), w()).normalize_or_zero();
+            let p = Vec3::new(w(), w(), w()) * 0.01;
+            cases.push((p, n, p.abs() + Vec3::splat(w().abs())));
+        }
+        for (p, n, s) in cases {
+            let want = super::offset_ray_f32_scalar(p, n, s)
+                .to_array()
+                .map(f32::to_bits);
+            let got = super::offset_ray_sse2(p, n, s).to_array().map(f32::to_bits);
+            assert_eq!(got, want, "p {p:?} n {n:?} scale {s:?}");
+        }
+    }
+}
