@@ -696,6 +696,19 @@ impl<R: Real> Stack<R> {
     }
 }
 
+/// `traverse` from `node` down, keeping `best` unless it finds nearer.
+pub(crate) fn traverse_below<R: Real>(
+    scene: &CpuScene<R>,
+    ray: &Ray<R>,
+    node: u32,
+    best: &mut Hit<R>,
+    any_hit: bool,
+) {
+    let mut stack = Stack::new();
+    stack.push(node, R::ZERO);
+    traverse_from(scene, ray, best, any_hit, &[], R::ZERO, &mut stack);
+}
+
 #[allow(clippy::too_many_arguments)]
 fn traverse_from<R: Real>(
     scene: &CpuScene<R>,
