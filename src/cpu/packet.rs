@@ -981,6 +981,18 @@ pub fn fill_band(
     }
 }
 
+/// `trace::safe_normalize` in an SSE register: the dot product left to
+/// right, as glam's `Vec3A::dot` adds it, so the same bits.
+#[inline(always)]
+fn safe_normalize_a(v: Vec3A, fallback: Vec3A) -> Vec3A {
+    let len2 = v.dot(v);
+    if len2 > 0.0 {
+        v * (1.0 / len2.sqrt())
+    } else {
+        fallback
+    }
+}
+
 /// `trace::surface_point` for the packets' f32 scene, a triangle's vectors
 /// in SSE registers (glam's `Vec3A`) instead of three scalars each: per
 /// lane the same operations in the same order on the same values, only
@@ -1001,19 +1013,9 @@ fn surface_point_f32(scene: &CpuScene<f32>, ray: &Ray<f32>, hit: &Hit<f32>) -> S
     // `Real::cross` (glam's scalar one), written out so that no fused
     // multiply-subtract can enter where the target has FMA.
     let cross = |a: Vec3A, b: Vec3A| (a.zxy() * b - a * b.zxy()).zxy();
-    // `trace::safe_normalize`: the dot product left to right, as glam's
-    // `Vec3A::dot` adds it.
-    let normalize = |v: Vec3A, fallback: Vec3A| {
-        let len2 = v.dot(v);
-        if len2 > 0.0 {
-            v * (1.0 / len2.sqrt())
-        } else {
-            fallback
-        }
-    };
-    let ng = normalize(cross(tri[1] - tri[0], tri[2] - tri[0]), Vec3A::Z);
+    let ng = safe_normalize_a(cross(tri[1] - tri[0], tri[2] - tri[0]), Vec3A::Z);
     let s = &scene.shading[index];
-    let n = normalize(
+    let n = safe_normalize_a(
         Vec3A::from(s[0].normal) * w[0]
             + Vec3A::from(s[1].normal) * w[1]
             + Vec3A::from(s[2].normal) * w[2],
@@ -1040,13 +1042,7 @@ fn surface_point_f32(scene: &CpuScene<f32>, ray: &Ray<f32>, hit: &Hit<f32>) -> S
 #[inline(always)]
 fn point_contribution_f32(sp: &SurfacePoint<f32>, view: Vec3, target: Vec3, color: Vec3) -> Vec3A {
     let n = Vec3A::from(sp.n);
-    let to_light = Vec3A::from(target) - Vec3A::from(sp.p);
-    let len2 = to_light.dot(to_light);
-    let l = if len2 > 0.0 {
-        to_light * (1.0 / len2.sqrt())
-    } else {
-        n
-    };
+    let l = safe_normalize_a(Vec3A::from(target) - Vec3A::from(sp.p), n);
     let ln = l.dot(n);
     let r = n * (2.0 * ln) - l;
     // Scalar `max`, as there: a NaN gives 0.

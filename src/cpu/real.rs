@@ -144,7 +144,7 @@ scalar_offset_ray!(offset_ray_f64, f64, DVec3, i64);
 scalar_offset_ray!(offset_ray_f32_scalar, f32, Vec3, i32);
 
 macro_rules! impl_real {
-    ($t:ty, $v:ty, $i:ty, $eps_ratio:expr $(, $extra:item)*) => {
+    ($t:ty, $v:ty, $eps_ratio:expr $(, $extra:item)*) => {
         impl Real for $t {
             $($extra)*
             type V3 = $v;
@@ -246,7 +246,6 @@ macro_rules! impl_real {
 impl_real!(
     f32,
     Vec3,
-    i32,
     1.0,
     #[inline(always)]
     fn offset_ray(p: Vec3, n: Vec3, scale: Vec3) -> Vec3 {
@@ -268,7 +267,6 @@ impl_real!(
 impl_real!(
     f64,
     DVec3,
-    i64,
     (f64::EPSILON / f32::EPSILON as f64),
     #[inline(always)]
     fn offset_ray(p: DVec3, n: DVec3, scale: DVec3) -> DVec3 {
@@ -356,9 +354,7 @@ mod tests {
         ];
         let mut state = 0x1234_5678u32;
         let mut next = move || {
-            state ^= state << 13;
-            state ^= state >> 17;
-            state ^= state << 5;
+            state = crate::cpu::sample::hash_u32(state);
             state
         };
         let mut cases = Vec::new();
