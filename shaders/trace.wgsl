@@ -320,6 +320,10 @@ override UNIFORM_CORNERS: bool = false;
 // Read spheres, triangles, nodes, primitive references, normals and
 // materials through their device addresses (see "Address lists" above).
 override ADDRESSES: bool = false;
+// Reference slot r holds triangle r (a scene without spheres, its
+// triangles in leaf order: layout::GpuScene::scene_triangles): a leaf's
+// triangle loads need not wait for its reference's.
+override LEAF_ORDER: bool = false;
 const TANGENT_BAND: f32 = 0.000244140625;
 const ON_SURFACE: f32 = 0.00000095367431640625;
 const SPLIT_CHUNKS: u32 = 4u;
@@ -1054,7 +1058,11 @@ fn traverse(ray: Ray, t_max: f32, any_hit: bool) -> Hit {
                     word = prim_refs[r];
                 }
             }
-            if (hit_prim(ray, word & ~LEAF_END, &best, any_hit)) {
+            var prim = word & ~LEAF_END;
+            if (LEAF_ORDER) {
+                prim = r;
+            }
+            if (hit_prim(ray, prim, &best, any_hit)) {
                 return best;
             }
             if ((word & LEAF_END) != 0u) {

@@ -393,6 +393,8 @@ pub const TRAVERSAL_STACK: u32 = BVH_MAX_DEPTH;
 #[derive(Clone, Debug, Default)]
 pub struct GpuScene {
     pub spheres: Vec<GpuSphere>,
+    /// The triangles, with their normals, velocities and every reference
+    /// to them, in the order `scene_triangles` gives.
     pub triangles: Vec<GpuTriangle>,
     pub normals: Vec<GpuTriangleNormals>,
     pub materials: Vec<GpuMaterial>,
@@ -407,6 +409,14 @@ pub struct GpuScene {
     /// nothing moves.
     pub velocities: Vec<[f32; 4]>,
     pub ambient: [f32; 3],
+    /// Empty: the triangles are in the scene's order. Otherwise they are in
+    /// leaf order, and packed triangle i is the scene's triangle
+    /// `scene_triangles[i]`: in a scene without spheres, reference slot r
+    /// (`prim_refs[r]`) is then triangle r, so a leaf's triangles lie
+    /// together and the shader (`LEAF_ORDER`) reads a triangle without
+    /// waiting for its reference first. Ids leaving the GPU go back to the
+    /// scene's (`scene_prim`).
+    pub scene_triangles: Vec<u32>,
 }
 
 /// The binary tree collapsed and quantised for the shader: a leaf lane
@@ -527,9 +537,13 @@ impl QuantAxis {
 }
 
 /// The primitive references with the last of each leaf marked, so that a
-/// leaf lane needs no count.
-fn leaf_runs(bvh: &Bvh) -> Vec<u32> {
-    let mut refs = bvh.prim_refs.clone();
+/// leaf lane needs no count; in leaf order slot r's reference is r.
+fn leaf_runs(bvh: &Bvh, leaf_order: bool) -> Vec<u32> {
+    let mut refs = if leaf_order {
+        (0..bvh.prim_refs.len() as u32).collect()
+    } else {
+        bvh.prim_refs.clone()
+    };
     for n in bvh.nodes.iter().filter(|n| n.count > 0) {
         refs[(n.right_or_first + n.count - 1) as usize] |= LEAF_END;
     }
@@ -579,9 +593,19 @@ impl GpuScene {
             })
         };
         let ids: Vec<u32> = scene.materials.iter().map(&mut material_index).collect();
+        // Leaf order where every reference is to a triangle: each one's
+        // slot is then its index (the tree references every primitive
+        // once).
+        let scene_triangles =
+            if scene.spheres.is_empty() && bvh.prim_refs.len() == scene.triangles.len() {
+                bvh.prim_refs.clone()
+            } else {
+                Vec::new()
+            };
+        let in_order = |i: usize| scene_triangles.get(i).map_or(i, |&t| t as usize);
         let mut triangles = Vec::with_capacity(scene.triangles.len());
         let mut normals = Vec::with_capacity(scene.triangles.len());
-        for t in &scene.triangles {
+        for t in (0..scene.triangles.len()).map(|i| &scene.triangles[in_order(i)]) {
             triangles.push(GpuTriangle {
                 v: t.vertices.map(|v| {
                     let mut p = f4(v.position);
@@ -594,6 +618,15 @@ impl GpuScene {
                 n: *n.as_flattened().first_chunk().expect("9 values"),
             });
         }
+        // A scene triangle's packed index (only the skips need it).
+        let mut packed_index = Vec::new();
+        if !scene_triangles.is_empty() && !bvh.surfaces_at_lights.iter().all(Vec::is_empty) {
+            packed_index = vec![0; scene_triangles.len()];
+            for (i, &t) in scene_triangles.iter().enumerate() {
+                packed_index[t as usize] = i as u32;
+            }
+        }
+        let packed = |r: u32| packed_index.get(r as usize).copied().unwrap_or(r);
         let mut skips = Vec::new();
         let lights = scene
             .lights
@@ -602,7 +635,7 @@ impl GpuScene {
             .map(|(i, l)| {
                 let through = bvh.surfaces_at_lights.get(i).map_or(&[][..], Vec::as_slice);
                 let skip_first = skips.len() as u32;
-                skips.extend_from_slice(through);
+                skips.extend(through.iter().map(|&r| packed(r)));
                 let mut g = GpuLight {
                     skip_first,
                     skip_count: through.len() as u32,
@@ -628,8 +661,8 @@ impl GpuScene {
             .collect();
         let velocities = if scene.has_motion() {
             let s = scene.spheres.iter().map(|s| f4(s.velocity));
-            s.chain(scene.triangles.iter().map(|t| f4(t.velocity)))
-                .collect()
+            let t = (0..scene.triangles.len()).map(|i| f4(scene.triangles[in_order(i)].velocity));
+            s.chain(t).collect()
         } else {
             Vec::new()
         };
@@ -640,11 +673,29 @@ impl GpuScene {
             materials,
             lights,
             nodes: wide_nodes(bvh),
-            prim_refs: leaf_runs(bvh),
+            prim_refs: leaf_runs(bvh, !scene_triangles.is_empty()),
             skips,
             velocities,
             ambient: f3(scene.ambient),
+            scene_triangles,
         }
+    }
+
+    /// Whether the triangles are in leaf order (`scene_triangles`).
+    pub fn leaf_order(&self) -> bool {
+        !self.scene_triangles.is_empty()
+    }
+
+    /// The scene's id of the primitive the shader calls `prim` (a
+    /// reference without `LEAF_END`, or `NO_HIT`).
+    pub fn scene_prim(&self, prim: u32) -> u32 {
+        if prim & SPHERE_BIT != 0 {
+            return prim;
+        }
+        self.scene_triangles
+            .get(prim as usize)
+            .copied()
+            .unwrap_or(prim)
     }
 
     /// Bytes of each list, as uploaded.
@@ -824,8 +875,63 @@ mod tests {
                 .collect();
             want.sort();
             assert_eq!(runs, want, "{n} triangles");
+            // In leaf order (a scene of triangles only), slot r is triangle r.
             let refs: Vec<u32> = gpu.prim_refs.iter().map(|r| r & !LEAF_END).collect();
-            assert_eq!(refs, bvh.prim_refs);
+            assert_eq!(refs, (0..n as u32).collect::<Vec<_>>());
+            let ids: Vec<u32> = refs.iter().map(|&r| gpu.scene_prim(r)).collect();
+            assert_eq!(ids, bvh.prim_refs);
         }
+    }
+
+    #[test]
+    fn triangles_go_in_leaf_order_with_everything_that_names_them() {
+        let mut scene = scene(300);
+        for (i, t) in scene.triangles.iter_mut().enumerate() {
+            t.velocity = glam::DVec3::new(i as f64, 0.0, 0.0);
+            t.vertices[1].normal = glam::DVec3::new(0.0, 1.0, i as f64).normalize();
+        }
+        let moving = Scene {
+            lights: vec![crate::scene::Light::point(
+                glam::DVec3::ZERO,
+                glam::DVec3::ONE,
+            )],
+            ..scene.clone()
+        };
+        let mut bvh = Bvh::build(&moving);
+        assert_ne!(
+            bvh.prim_refs,
+            (0..300).collect::<Vec<u32>>(),
+            "a shuffled order"
+        );
+        bvh.surfaces_at_lights = vec![vec![5, 17, 299]];
+        let gpu = GpuScene::pack(&moving, &bvh);
+        assert!(gpu.leaf_order());
+        for (r, &t) in bvh.prim_refs.iter().enumerate() {
+            let want = &moving.triangles[t as usize];
+            assert_eq!(gpu.triangles[r].v[2][2], want.vertices[2].position.z as f32);
+            assert_eq!(gpu.normals[r].n[5], want.vertices[1].normal.z as f32);
+            assert_eq!(gpu.velocities[r][0], t as f32);
+            assert_eq!(gpu.scene_prim(r as u32), t);
+        }
+        let skipped: Vec<u32> = gpu.skips.iter().map(|&r| gpu.scene_prim(r)).collect();
+        assert_eq!(skipped, [5, 17, 299]);
+        assert_eq!(gpu.scene_prim(crate::probe::NO_HIT), crate::probe::NO_HIT);
+        // A sphere among them: every list stays in the scene's order.
+        let mut mixed = moving.clone();
+        mixed.spheres.push(crate::scene::Sphere {
+            center: glam::DVec3::new(0.0, 0.0, -5.0),
+            radius: 1.0,
+            material: scene.materials[0],
+            velocity: glam::DVec3::ZERO,
+        });
+        let bvh = Bvh::build(&mixed);
+        let gpu = GpuScene::pack(&mixed, &bvh);
+        assert!(!gpu.leaf_order());
+        let refs: Vec<u32> = gpu.prim_refs.iter().map(|r| r & !LEAF_END).collect();
+        assert_eq!(refs, bvh.prim_refs);
+        for i in 0..300 {
+            assert_eq!(gpu.velocities[1 + i][0], i as f32);
+        }
+        assert_eq!(gpu.scene_prim(7), 7);
     }
 }

@@ -44,7 +44,9 @@ impl MemoryNeed {
         let lists = scene.list_bytes();
         let total: u64 = lists.iter().sum();
         let largest = lists.iter().copied().max().unwrap_or(0);
-        self.parts.push(("packed scene", total));
+        // The leaf order's ids stay on the host only.
+        let ids = 4 * scene.scene_triangles.len() as u64;
+        self.parts.push(("packed scene", total + ids));
         self.parts.push(("staging", largest));
         let texels = tile_texels;
         // Two slots, each with output + readback texels and pixel state.

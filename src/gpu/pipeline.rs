@@ -51,6 +51,8 @@ pub struct PipelineKey {
     pub light_skips: bool,
     /// The uniform triangle copy holds corners only (`CopyForm::Corners`).
     pub corners: bool,
+    /// The triangles are in leaf order (`GpuScene::scene_triangles`).
+    pub leaf_order: bool,
     pub kernel: Kernel,
 }
 
@@ -231,6 +233,7 @@ impl TracePipeline {
             lists: key.lists,
             light_skips: key.light_skips,
             corners: key.corners,
+            leaf_order: key.leaf_order,
         };
         let words = super::shader::spirv(key.methods, key.features, variant)?;
         let device = &self.shared.device;

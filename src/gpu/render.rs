@@ -46,7 +46,7 @@ fn key(
     options: &GpuRenderOptions,
     kernel: Kernel,
     lists: Lists,
-    light_skips: bool,
+    scene: &GpuScene,
     uploads: &[Upload],
 ) -> PipelineKey {
     let triangles = uploads
@@ -57,8 +57,9 @@ fn key(
         methods: options.methods,
         features: options.features,
         lists,
-        light_skips,
+        light_skips: !scene.skips.is_empty(),
         corners: lists == Lists::Uniform && uniform_copy_form(1, triangles) == CopyForm::Corners,
+        leaf_order: scene.leaf_order(),
         kernel,
     }
 }
@@ -407,8 +408,13 @@ impl GpuRenderer {
         options: &GpuRenderOptions,
         kernel: Kernel,
     ) -> Result<Duration, GpuError> {
-        self.pipeline
-            .measure_build(key(options, kernel, Lists::Plain, false, &[]))
+        self.pipeline.measure_build(key(
+            options,
+            kernel,
+            Lists::Plain,
+            &GpuScene::default(),
+            &[],
+        ))
     }
 
     /// Builds (or finds in the cache) the pipeline a render of `scene` with
@@ -424,10 +430,9 @@ impl GpuRenderer {
         let uploads = scene_uploads(scene);
         let lists = plan_lists(&uploads, &limits, options.uniform_lists)
             .map_or(Lists::Plain, |(_, lists)| lists);
-        let light_skips = !scene.skips.is_empty();
         Ok(self
             .pipeline
-            .get(key(options, kernel, lists, light_skips, &uploads))?
+            .get(key(options, kernel, lists, scene, &uploads))?
             .1)
     }
 
@@ -536,7 +541,11 @@ impl GpuRenderer {
             &|_, _| {},
             &mut |rect, texels| place_tile(rect, texels, width, &mut image, |t| *t),
         )?;
-        Ok(ProbeImage::from_texels(camera.width, camera.height, &image))
+        let mut probe = ProbeImage::from_texels(camera.width, camera.height, &image);
+        for p in &mut probe.pixels {
+            p.prim = scene.scene_prim(p.prim);
+        }
+        Ok(probe)
     }
 
     /// The path of pixel (x, y) (the shader's `probe_pixel`).
@@ -560,7 +569,12 @@ impl GpuRenderer {
             &|_, _| {},
             &mut |_, texels| record = texels.to_vec(),
         )?;
-        Ok(PathRecord::from_texels(&record))
+        let mut path = PathRecord::from_texels(&record);
+        path.prim = scene.scene_prim(path.prim);
+        for light in &mut path.lights {
+            light.blocker = scene.scene_prim(light.blocker);
+        }
+        Ok(path)
     }
 
     /// The bytes each binding of a render would hold, checked against the
@@ -707,8 +721,7 @@ impl GpuRenderer {
                 uploads.push(upload(UNIFORM_FIRST + j, name, copy.into()));
             }
         }
-        let light_skips = !scene.skips.is_empty();
-        let key = key(options, kernel, lists, light_skips, &uploads);
+        let key = key(options, kernel, lists, scene, &uploads);
         let (pipeline, build_time) = self.pipeline.get(key)?;
         if !build_time.is_zero() {
             timings.add("pipeline", build_time);

@@ -66,6 +66,8 @@ pub struct Variant {
     /// With uniform lists: the triangle copy holds corners only
     /// (`layout::CopyForm::Corners`).
     pub corners: bool,
+    /// Reference slot r holds triangle r (`GpuScene::scene_triangles`).
+    pub leaf_order: bool,
 }
 
 /// The override values of a variant, as `process_overrides` takes them.
@@ -88,6 +90,7 @@ pub fn pipeline_constants(
         "UNIFORM_CORNERS".into(),
         flag(variant.lists == Lists::Uniform && variant.corners),
     );
+    constants.insert("LEAF_ORDER".into(), flag(variant.leaf_order));
     for (name, on) in features.overrides() {
         constants.insert(name.into(), flag(on));
     }
@@ -925,11 +928,17 @@ mod tests {
             };
             for methods in Methods::ALL {
                 for lists in Lists::ALL {
-                    for (light_skips, corners) in [(false, false), (true, false), (false, true)] {
+                    for (light_skips, corners, leaf_order) in [
+                        (false, false, false),
+                        (true, false, false),
+                        (false, true, false),
+                        (true, true, true),
+                    ] {
                         let variant = Variant {
                             lists,
                             light_skips,
                             corners,
+                            leaf_order,
                         };
                         spirv(methods, f, variant).unwrap_or_else(|e| panic!("{e}"));
                     }
