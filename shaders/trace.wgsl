@@ -196,7 +196,7 @@ struct Light {
 
 // Four child boxes quantised within the node's box (src/layout.rs:
 // GpuWideNode), and per lane a node index, WIDE_LEAF | first primitive
-// reference, or WIDE_EMPTY.
+// reference (see leaf_first), or WIDE_EMPTY.
 struct WideNode {
     origin: vec4<f32>,
     lo_hi: vec4<u32>,
@@ -254,6 +254,7 @@ const TRAVERSAL_STACK: u32 = 64u;
 const WIDE_LEAF: u32 = 0x80000000u;
 const WIDE_EMPTY: u32 = 0xffffffffu;
 const LEAF_END: u32 = 0x40000000u;
+const LEAF_COUNT_SHIFT: u32 = 28u;
 const WORKGROUP_SIZE: u32 = 8u;
 const NO_HIT: u32 = 0xffffffffu;
 // Most iterations one BVH traversal may take; a ray that needs more is cut
@@ -321,8 +322,9 @@ override UNIFORM_CORNERS: bool = false;
 // materials through their device addresses (see "Address lists" above).
 override ADDRESSES: bool = false;
 // Reference slot r holds triangle r (a scene without spheres, its
-// triangles in leaf order: layout::GpuScene::scene_triangles): a leaf's
-// triangle loads need not wait for its reference's.
+// triangles in leaf order: layout::GpuScene::scene_triangles), and a leaf
+// lane's word holds its count (layout::LEAF_COUNT_SHIFT): the leaf loop
+// reads no references.
 override LEAF_ORDER: bool = false;
 const TANGENT_BAND: f32 = 0.000244140625;
 const ON_SURFACE: f32 = 0.00000095367431640625;
@@ -976,6 +978,20 @@ fn order(a: ptr<function, Child>, b: ptr<function, Child>) {
     }
 }
 
+// A leaf lane's first reference slot (its word less WIDE_LEAF, and with
+// LEAF_ORDER less its count: layout::LEAF_COUNT_SHIFT).
+fn leaf_first(word: u32) -> u32 {
+    if (LEAF_ORDER) {
+        return word & ((1u << LEAF_COUNT_SHIFT) - 1u);
+    }
+    return word & ~WIDE_LEAF;
+}
+
+// With LEAF_ORDER: the slot after a leaf lane's last.
+fn leaf_end(word: u32) -> u32 {
+    return leaf_first(word) + ((word >> LEAF_COUNT_SHIFT) & 7u) + 1u;
+}
+
 // Appends c's word to out[k] when c was hit and is a leaf (kind WIDE_LEAF)
 // or a node (kind 0).
 fn append_hit(out: ptr<function, vec4<u32>>, k: ptr<function, u32>, c: Child, kind: u32) {
@@ -1043,31 +1059,41 @@ fn traverse(ray: Ray, t_max: f32, any_hit: bool) -> Hit {
         // in two nested loops (4-10% faster on Mesa 22.3, whose loops run
         // their body once even when no lane enters; level on Mesa 25).
         var li = 0u;
-        var r = leaves.x & ~WIDE_LEAF;
+        var r = leaf_first(leaves.x);
+        var end = leaf_end(leaves.x);
         for (; li < kl && r < arrayLength(&prim_refs);) {
             work += 1u;
-            var word: u32;
-            if (UNIFORM_LISTS) {
-                word = prim_refs_u[r >> 2u][r & 3u];
-            } else {
-                if (ADDRESSES) {
-                    // Unclamped: the loop's condition bounds r by the
-                    // binding's length.
-                    word = device_load1(list_address(3u), r);
-                } else {
-                    word = prim_refs[r];
-                }
-            }
-            var prim = word & ~LEAF_END;
+            var prim: u32;
+            var last: bool;
             if (LEAF_ORDER) {
+                // Slot r is triangle r, and the leaf's word says where it
+                // ends: no load stands between one triangle and the next.
                 prim = r;
+                last = r + 1u == end;
+            } else {
+                var word: u32;
+                if (UNIFORM_LISTS) {
+                    word = prim_refs_u[r >> 2u][r & 3u];
+                } else {
+                    if (ADDRESSES) {
+                        // Unclamped: the loop's condition bounds r by the
+                        // binding's length.
+                        word = device_load1(list_address(3u), r);
+                    } else {
+                        word = prim_refs[r];
+                    }
+                }
+                prim = word & ~LEAF_END;
+                last = (word & LEAF_END) != 0u;
             }
             if (hit_prim(ray, prim, &best, any_hit)) {
                 return best;
             }
-            if ((word & LEAF_END) != 0u) {
+            if (last) {
                 li += 1u;
-                r = leaves[min(li, 3u)] & ~WIDE_LEAF;
+                let next = leaves[min(li, 3u)];
+                r = leaf_first(next);
+                end = leaf_end(next);
             } else {
                 r += 1u;
             }

@@ -375,8 +375,16 @@ pub struct GpuWideNode {
 }
 
 /// `GpuWideNode::child` of a leaf lane: this bit plus its first primitive
-/// reference.
+/// reference (and in leaf order its count, `LEAF_COUNT_SHIFT`).
 pub const WIDE_LEAF: u32 = 1 << 31;
+/// In leaf order (`GpuScene::scene_triangles`) a leaf lane's word holds
+/// its count less one in the three bits from this one, its first reference
+/// below them: the shader's leaf loop then finds where a leaf ends
+/// without loading a reference.
+pub const LEAF_COUNT_SHIFT: u32 = 28;
+/// Most triangles a leaf-ordered scene holds: every first reference fits
+/// below `LEAF_COUNT_SHIFT`, and no leaf word reads as `WIDE_EMPTY`.
+const LEAF_ORDER_MAX: usize = (1 << LEAF_COUNT_SHIFT) - 8;
 /// `GpuWideNode::child` of an unused lane.
 pub const WIDE_EMPTY: u32 = u32::MAX;
 /// Bit 30 of the shader's primitive references: the last of its leaf.
@@ -409,24 +417,35 @@ pub struct GpuScene {
     /// nothing moves.
     pub velocities: Vec<[f32; 4]>,
     pub ambient: [f32; 3],
-    /// Empty: the triangles are in the scene's order. Otherwise they are in
-    /// leaf order, and packed triangle i is the scene's triangle
-    /// `scene_triangles[i]`: in a scene without spheres, reference slot r
-    /// (`prim_refs[r]`) is then triangle r, so a leaf's triangles lie
-    /// together and the shader (`LEAF_ORDER`) reads a triangle without
-    /// waiting for its reference first. Ids leaving the GPU go back to the
-    /// scene's (`scene_prim`).
+    /// Empty: the triangles are in the scene's order. Otherwise (a scene
+    /// without spheres, of at most 2^28 - 8 triangles, no leaf over 8)
+    /// they are in leaf order, and packed triangle i is the scene's
+    /// triangle `scene_triangles[i]`: reference slot r (`prim_refs[r]`) is
+    /// then triangle r and each leaf word holds its count
+    /// (`LEAF_COUNT_SHIFT`), so a leaf's triangles lie together and the
+    /// shader (`LEAF_ORDER`) reads them without reading references. Ids
+    /// leaving the GPU go back to the scene's (`scene_prim`).
     pub scene_triangles: Vec<u32>,
 }
 
 /// The binary tree collapsed and quantised for the shader: a leaf lane
 /// names its first primitive reference (`leaf_runs` marks where each run
 /// ends).
-fn wide_nodes(bvh: &Bvh) -> Vec<GpuWideNode> {
-    crate::cpu::wide::collapse_nodes(bvh, |leaf| WIDE_LEAF | leaf.right_or_first)
+fn wide_nodes(bvh: &Bvh, leaf_order: bool) -> Vec<GpuWideNode> {
+    crate::cpu::wide::collapse_nodes(bvh, |leaf| leaf_word(leaf, leaf_order))
         .iter()
         .map(quantise)
         .collect()
+}
+
+/// The child word of a leaf lane (`WIDE_LEAF`, `LEAF_COUNT_SHIFT`).
+fn leaf_word(leaf: &GpuBvhNode, leaf_order: bool) -> u32 {
+    let count = if leaf_order {
+        (leaf.count - 1) << LEAF_COUNT_SHIFT
+    } else {
+        0
+    };
+    WIDE_LEAF | count | leaf.right_or_first
 }
 
 /// `n`'s boxes in 8 bits an axis, each holding the f32 box it replaces.
@@ -593,15 +612,18 @@ impl GpuScene {
             })
         };
         let ids: Vec<u32> = scene.materials.iter().map(&mut material_index).collect();
-        // Leaf order where every reference is to a triangle: each one's
-        // slot is then its index (the tree references every primitive
-        // once).
-        let scene_triangles =
-            if scene.spheres.is_empty() && bvh.prim_refs.len() == scene.triangles.len() {
-                bvh.prim_refs.clone()
-            } else {
-                Vec::new()
-            };
+        // Leaf order where every reference is to a triangle (each one's
+        // slot is then its index: the tree references every primitive
+        // once) and every leaf's count fits its word.
+        let leaf_order = scene.spheres.is_empty()
+            && bvh.prim_refs.len() == scene.triangles.len()
+            && scene.triangles.len() <= LEAF_ORDER_MAX
+            && bvh.nodes.iter().all(|n| n.count <= 8);
+        let scene_triangles = if leaf_order {
+            bvh.prim_refs.clone()
+        } else {
+            Vec::new()
+        };
         let in_order = |i: usize| scene_triangles.get(i).map_or(i, |&t| t as usize);
         let mut triangles = Vec::with_capacity(scene.triangles.len());
         let mut normals = Vec::with_capacity(scene.triangles.len());
@@ -672,8 +694,8 @@ impl GpuScene {
             normals,
             materials,
             lights,
-            nodes: wide_nodes(bvh),
-            prim_refs: leaf_runs(bvh, !scene_triangles.is_empty()),
+            nodes: wide_nodes(bvh, leaf_order),
+            prim_refs: leaf_runs(bvh, leaf_order),
             skips,
             velocities,
             ambient: f3(scene.ambient),
@@ -849,20 +871,29 @@ mod tests {
             let gpu = GpuScene::pack(&scene, &bvh);
             let wide = collapse_nodes(&bvh, |leaf| WIDE_LEAF | leaf.right_or_first);
             assert_eq!(gpu.nodes.len(), wide.len());
+            assert!(gpu.leaf_order());
             let mut runs = Vec::new();
             for (g, w) in gpu.nodes.iter().zip(&wide) {
-                assert_eq!(g.child, w.child);
+                let first_of = |c: u32| c & ((1 << LEAF_COUNT_SHIFT) - 1);
+                let plain = g.child.map(|c| match c {
+                    WIDE_EMPTY => c,
+                    c if c & WIDE_LEAF != 0 => WIDE_LEAF | first_of(c),
+                    c => c,
+                });
+                assert_eq!(plain, w.child);
                 for &c in g
                     .child
                     .iter()
                     .filter(|&&c| c != WIDE_EMPTY && c & WIDE_LEAF != 0)
                 {
-                    let first = (c & !WIDE_LEAF) as usize;
+                    let first = first_of(c) as usize;
                     let len = gpu.prim_refs[first..]
                         .iter()
                         .position(|r| r & LEAF_END != 0)
                         .expect("every run ends")
                         + 1;
+                    // The word's count is the run's.
+                    assert_eq!((c >> LEAF_COUNT_SHIFT & 7) as usize + 1, len);
                     runs.push((first as u32, len as u32));
                 }
             }

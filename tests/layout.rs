@@ -257,6 +257,10 @@ fn shared_constants_match() {
     assert_eq!(constant(&m, "WIDE_LEAF"), Literal::U32(WIDE_LEAF));
     assert_eq!(constant(&m, "WIDE_EMPTY"), Literal::U32(WIDE_EMPTY));
     assert_eq!(constant(&m, "LEAF_END"), Literal::U32(LEAF_END));
+    assert_eq!(
+        constant(&m, "LEAF_COUNT_SHIFT"),
+        Literal::U32(LEAF_COUNT_SHIFT)
+    );
     assert_eq!(constant(&m, "WORKGROUP_SIZE"), Literal::U32(WORKGROUP_SIZE));
     assert_eq!(
         constant(&m, "NO_HIT"),
