@@ -255,6 +255,7 @@ const WIDE_LEAF: u32 = 0x80000000u;
 const WIDE_EMPTY: u32 = 0xffffffffu;
 const LEAF_END: u32 = 0x40000000u;
 const LEAF_COUNT_SHIFT: u32 = 28u;
+const LEAF_COUNT_MASK: u32 = 7u;
 const WORKGROUP_SIZE: u32 = 8u;
 const NO_HIT: u32 = 0xffffffffu;
 // Most iterations one BVH traversal may take; a ray that needs more is cut
@@ -989,7 +990,7 @@ fn leaf_first(word: u32) -> u32 {
 
 // With LEAF_ORDER: the slot after a leaf lane's last.
 fn leaf_end(word: u32) -> u32 {
-    return leaf_first(word) + ((word >> LEAF_COUNT_SHIFT) & 7u) + 1u;
+    return leaf_first(word) + ((word >> LEAF_COUNT_SHIFT) & LEAF_COUNT_MASK) + 1u;
 }
 
 // Appends c's word to out[k] when c was hit and is a leaf (kind WIDE_LEAF)
@@ -1501,19 +1502,12 @@ fn reflect_off(st: ptr<function, PixelState>, sp: SurfacePoint, local: vec3<f32>
     (*st).phase = PHASE_TRACE;
 }
 
-// The pixel's work from where the last pass left it, until it is done or
-// this pass's budget is spent. Box filter over the pixel's samples; each
-// sample is radiance() along its camera ray. The loops nest as the CPU's
-// functions do (samples, bounces, lights), so the lanes of a SIMD device
-// step through the same code together; each loop starts where the saved
-// state says. Every statement costs on SIMD CPUs such as llvmpipe even where
-// no lane takes it, so the hot loops hold no save or resume code: a spent
-// budget only breaks out, and the state is saved once at the end.
 // The pixel of the tile that invocation `lane` of workgroup `group`
 // renders: each run of eight invocations (llvmpipe's eight SIMD lanes)
 // takes a 4x2 block of pixels rather than a row of eight, so that the rays
 // a SIMD instruction traces together lie closer. A warp of 32 still covers
-// 8x4 pixels.
+// 8x4 pixels. Written for WORKGROUP_SIZE 8 (eight runs of eight cover the
+// 8x8 workgroup; src/layout.rs asserts the size).
 fn block_pixel(group: vec3<u32>, lane: u32) -> vec2<u32> {
     let run = lane >> 3u;
     let i = lane & 7u;
@@ -1523,6 +1517,14 @@ fn block_pixel(group: vec3<u32>, lane: u32) -> vec2<u32> {
     );
 }
 
+// The pixel's work from where the last pass left it, until it is done or
+// this pass's budget is spent. Box filter over the pixel's samples; each
+// sample is radiance() along its camera ray. The loops nest as the CPU's
+// functions do (samples, bounces, lights), so the lanes of a SIMD device
+// step through the same code together; each loop starts where the saved
+// state says. Every statement costs on SIMD CPUs such as llvmpipe even where
+// no lane takes it, so the hot loops hold no save or resume code: a spent
+// budget only breaks out, and the state is saved once at the end.
 @compute @workgroup_size(WORKGROUP_SIZE, WORKGROUP_SIZE)
 fn render_tile(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocation_index) lane: u32) {
     let id = block_pixel(group, lane);

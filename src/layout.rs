@@ -22,6 +22,9 @@ pub const SPHERE_BIT: u32 = 0x8000_0000;
 pub const BVH_MAX_DEPTH: u32 = 64;
 /// Compute workgroup edge: workgroups are `WORKGROUP_SIZE x WORKGROUP_SIZE`.
 pub const WORKGROUP_SIZE: u32 = 8;
+// The shader's block_pixel lays 4x2 blocks over an 8x8 workgroup: any other
+// size would leave pixels unrendered.
+const _: () = assert!(WORKGROUP_SIZE == 8);
 /// `probe_tile` flags: the unclamped colour, or the surface point or normal,
 /// has an infinite or NaN component.
 pub const FLAG_NONFINITE_COLOR: u32 = 1;
@@ -378,13 +381,15 @@ pub struct GpuWideNode {
 /// reference (and in leaf order its count, `LEAF_COUNT_SHIFT`).
 pub const WIDE_LEAF: u32 = 1 << 31;
 /// In leaf order (`GpuScene::scene_triangles`) a leaf lane's word holds
-/// its count less one in the three bits from this one, its first reference
-/// below them: the shader's leaf loop then finds where a leaf ends
-/// without loading a reference.
+/// its count less one in the bits `LEAF_COUNT_MASK` from this one, its
+/// first reference below them: the shader's leaf loop then finds where a
+/// leaf ends without loading a reference.
 pub const LEAF_COUNT_SHIFT: u32 = 28;
+/// See `LEAF_COUNT_SHIFT`: leaves of up to 8 primitives.
+pub const LEAF_COUNT_MASK: u32 = 7;
 /// Most triangles a leaf-ordered scene holds: every first reference fits
 /// below `LEAF_COUNT_SHIFT`, and no leaf word reads as `WIDE_EMPTY`.
-const LEAF_ORDER_MAX: usize = (1 << LEAF_COUNT_SHIFT) - 8;
+const LEAF_ORDER_MAX: usize = (1 << LEAF_COUNT_SHIFT) - (LEAF_COUNT_MASK as usize + 1);
 /// `GpuWideNode::child` of an unused lane.
 pub const WIDE_EMPTY: u32 = u32::MAX;
 /// Bit 30 of the shader's primitive references: the last of its leaf.
@@ -618,16 +623,19 @@ impl GpuScene {
         let leaf_order = scene.spheres.is_empty()
             && bvh.prim_refs.len() == scene.triangles.len()
             && scene.triangles.len() <= LEAF_ORDER_MAX
-            && bvh.nodes.iter().all(|n| n.count <= 8);
+            && bvh.nodes.iter().all(|n| n.count <= LEAF_COUNT_MASK + 1);
         let scene_triangles = if leaf_order {
             bvh.prim_refs.clone()
         } else {
             Vec::new()
         };
-        let in_order = |i: usize| scene_triangles.get(i).map_or(i, |&t| t as usize);
+        let ordered = || {
+            (0..scene.triangles.len())
+                .map(|i| &scene.triangles[scene_triangles.get(i).map_or(i, |&t| t as usize)])
+        };
         let mut triangles = Vec::with_capacity(scene.triangles.len());
         let mut normals = Vec::with_capacity(scene.triangles.len());
-        for t in (0..scene.triangles.len()).map(|i| &scene.triangles[in_order(i)]) {
+        for t in ordered() {
             triangles.push(GpuTriangle {
                 v: t.vertices.map(|v| {
                     let mut p = f4(v.position);
@@ -683,8 +691,7 @@ impl GpuScene {
             .collect();
         let velocities = if scene.has_motion() {
             let s = scene.spheres.iter().map(|s| f4(s.velocity));
-            let t = (0..scene.triangles.len()).map(|i| f4(scene.triangles[in_order(i)].velocity));
-            s.chain(t).collect()
+            s.chain(ordered().map(|t| f4(t.velocity))).collect()
         } else {
             Vec::new()
         };
@@ -893,7 +900,7 @@ mod tests {
                         .expect("every run ends")
                         + 1;
                     // The word's count is the run's.
-                    assert_eq!((c >> LEAF_COUNT_SHIFT & 7) as usize + 1, len);
+                    assert_eq!((c >> LEAF_COUNT_SHIFT & LEAF_COUNT_MASK) as usize + 1, len);
                     runs.push((first as u32, len as u32));
                 }
             }

@@ -261,6 +261,10 @@ fn shared_constants_match() {
         constant(&m, "LEAF_COUNT_SHIFT"),
         Literal::U32(LEAF_COUNT_SHIFT)
     );
+    assert_eq!(
+        constant(&m, "LEAF_COUNT_MASK"),
+        Literal::U32(LEAF_COUNT_MASK)
+    );
     assert_eq!(constant(&m, "WORKGROUP_SIZE"), Literal::U32(WORKGROUP_SIZE));
     assert_eq!(
         constant(&m, "NO_HIT"),
