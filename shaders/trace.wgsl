@@ -327,6 +327,14 @@ override ADDRESSES: bool = false;
 // lane's word holds its count (layout::LEAF_COUNT_SHIFT): the leaf loop
 // reads no references.
 override LEAF_ORDER: bool = false;
+// A tile's first pass that keeps no state: no pixel state is read or
+// written, and a pixel that runs out of budget only counts itself in
+// `status.remaining`, whereupon the host redoes the tile with the
+// resumable shader (src/gpu/render.rs: TileWork::resumable). Measured on
+// Mesa 22.3, whose llvmpipe runs a branch's loads and stores lane by lane
+// even when no lane takes it: the state's 32 words in and out were 14-20%
+// of a render's instructions.
+override ONE_PASS: bool = false;
 const TANGENT_BAND: f32 = 0.000244140625;
 const ON_SURFACE: f32 = 0.00000095367431640625;
 const SPLIT_CHUNKS: u32 = 4u;
@@ -1536,10 +1544,12 @@ fn render_tile(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocatio
     let slot = id.y * tile.size.x + id.x;
     let n = samples_per_pixel();
     var st = fresh_state();
-    if (tile.first == 0u) {
-        st = state[slot];
-        if (st.sample >= n) {
-            return;
+    if (!ONE_PASS) {
+        if (tile.first == 0u) {
+            st = state[slot];
+            if (st.sample >= n) {
+                return;
+            }
         }
     }
     let pixel = y * frame.size.x + x;
@@ -1644,13 +1654,17 @@ fn render_tile(@builtin(workgroup_id) group: vec3<u32>, @builtin(local_invocatio
         return;
     }
     if (paused) {
-        state[slot] = st;
+        if (!ONE_PASS) {
+            state[slot] = st;
+        }
         atomicAdd(&status.remaining, 1u);
         return;
     }
     // Later passes of this tile skip the pixel; without this they would
     // read whatever an earlier tile left in its state slot.
-    state[slot].sample = st.sample;
+    if (!ONE_PASS) {
+        state[slot].sample = st.sample;
+    }
     var color = st.sum;
     if (MULTISAMPLE) {
         color = st.sum * (1.0 / f32(n));

@@ -141,7 +141,9 @@ fn five_thousand_lights_and_forty_spheres_match_the_cpu() {
 }
 
 /// Where the passes split a pixel's work does not change a bit of the
-/// image: every partial sum is kept as the f32 it is.
+/// image: every partial sum is kept as the f32 it is. A tile's first try
+/// keeps no state; a tile that needs more passes is redone with the
+/// resumable shader, and the render's later tiles start with it.
 #[test]
 fn passes_do_not_change_the_image() {
     let settings = Settings {
@@ -165,6 +167,13 @@ fn passes_do_not_change_the_image() {
             "budget {budget}: {} passes, default {}",
             t_many.counted("passes"),
             t_one.counted("passes")
+        );
+        // 12x10 in 8x8 tiles: four, of which at most the two in flight
+        // at the first redo try one pass.
+        let redos = t_many.counted(glint::gpu::RESUMABLE_REDOS);
+        assert!(
+            (1..4).contains(&redos),
+            "budget {budget}: {redos} tiles redone resumable"
         );
         for (i, (a, b)) in one.pixels.iter().zip(&many.pixels).enumerate() {
             assert_eq!(

@@ -20,4 +20,6 @@ pub use context::{
 };
 pub use error::GpuError;
 pub use pipeline::{Kernel, BINDINGS};
-pub use render::{tile_texels, GpuRenderOptions, GpuRenderer, DEFAULT_PASS_BUDGET};
+pub use render::{
+    tile_texels, GpuRenderOptions, GpuRenderer, DEFAULT_PASS_BUDGET, RESUMABLE_REDOS,
+};

@@ -53,6 +53,9 @@ pub struct PipelineKey {
     pub corners: bool,
     /// The triangles are in leaf order (`GpuScene::scene_triangles`).
     pub leaf_order: bool,
+    /// `Kernel::Render` only: a tile's first pass without pixel state
+    /// (`ONE_PASS` in the shader); false for the probes.
+    pub one_pass: bool,
     pub kernel: Kernel,
 }
 
@@ -234,6 +237,7 @@ impl TracePipeline {
             light_skips: key.light_skips,
             corners: key.corners,
             leaf_order: key.leaf_order,
+            one_pass: key.one_pass,
         };
         let words = super::shader::spirv(key.methods, key.features, variant)?;
         let device = &self.shared.device;

@@ -68,6 +68,8 @@ pub struct Variant {
     pub corners: bool,
     /// Reference slot r holds triangle r (`GpuScene::scene_triangles`).
     pub leaf_order: bool,
+    /// A tile's first pass without pixel state (`ONE_PASS` in the shader).
+    pub one_pass: bool,
 }
 
 /// The override values of a variant, as `process_overrides` takes them.
@@ -91,6 +93,7 @@ pub fn pipeline_constants(
         flag(variant.lists == Lists::Uniform && variant.corners),
     );
     constants.insert("LEAF_ORDER".into(), flag(variant.leaf_order));
+    constants.insert("ONE_PASS".into(), flag(variant.one_pass));
     for (name, on) in features.overrides() {
         constants.insert(name.into(), flag(on));
     }
@@ -106,7 +109,7 @@ pub fn specialize(
 ) -> Result<(Module, ModuleInfo), ShaderError> {
     let (module, info) = parsed()?;
     let what = format!(
-        "{} methods, features {}{}{}",
+        "{} methods, features {}{}{}{}",
         methods.name(),
         features.label(),
         match variant.lists {
@@ -120,7 +123,8 @@ pub fn specialize(
             ", lights on surfaces"
         } else {
             ""
-        }
+        },
+        if variant.one_pass { ", one pass" } else { "" }
     );
     let fail = |message: String| ShaderError {
         what: what.clone(),
@@ -700,6 +704,23 @@ mod tests {
         })
     }
 
+    /// The one-pass shader neither reads nor writes the pixel state (the
+    /// point of it); the resumable one does both.
+    #[test]
+    fn only_the_resumable_shader_touches_the_pixel_state() {
+        let (resumable, _) =
+            specialize(Methods::Robust, Features::ALL, Variant::default()).unwrap();
+        assert!(globals_used(&resumable).iter().any(|n| n == "state"));
+        let variant = Variant {
+            one_pass: true,
+            ..Variant::default()
+        };
+        let (one_pass, _) = specialize(Methods::Robust, Features::ALL, variant).unwrap();
+        let used = globals_used(&one_pass);
+        assert!(!used.iter().any(|n| n == "state"), "{used:?}");
+        assert!(used.iter().any(|n| n == "status"), "{used:?}");
+    }
+
     #[test]
     fn only_a_split_shader_reads_the_extra_chunks() {
         let chunk = |n: &String| n.ends_with(['1', '2', '3']);
@@ -928,17 +949,18 @@ mod tests {
             };
             for methods in Methods::ALL {
                 for lists in Lists::ALL {
-                    for (light_skips, corners, leaf_order) in [
-                        (false, false, false),
-                        (true, false, false),
-                        (false, true, false),
-                        (true, true, true),
+                    for (light_skips, corners, leaf_order, one_pass) in [
+                        (false, false, false, false),
+                        (true, false, false, true),
+                        (false, true, false, false),
+                        (true, true, true, true),
                     ] {
                         let variant = Variant {
                             lists,
                             light_skips,
                             corners,
                             leaf_order,
+                            one_pass,
                         };
                         spirv(methods, f, variant).unwrap_or_else(|e| panic!("{e}"));
                     }
