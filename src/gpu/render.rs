@@ -7,7 +7,9 @@
 //! the scene asks for. Each pass is one submit with its own fence; after it the
 //! host reads the pass's status: pixels left (another pass), or pixels cut
 //! short (the tile is redone with a smaller budget, or the render fails naming
-//! the pixel). Two tile slots alternate, so the GPU works on one while the host
+//! the pixel). A tile's first pass runs a shader that keeps no pixel state;
+//! a tile with pixels left after it is redone with the resumable one
+//! (`TileWork::resumable`). Two tile slots alternate, so the GPU works on one while the host
 //! reads the other back. A tile is dispatched into a device-local buffer and
 //! copied into a host-visible one, so shaders never write across PCIe.
 //!
