@@ -9,9 +9,10 @@
 //! short (the tile is redone with a smaller budget, or the render fails naming
 //! the pixel). A tile's first pass runs a shader that keeps no pixel state;
 //! a tile with pixels left after it is redone with the resumable one
-//! (`TileWork::resumable`). Two tile slots alternate, so the GPU works on one while the host
-//! reads the other back. A tile is dispatched into a device-local buffer and
-//! copied into a host-visible one, so shaders never write across PCIe.
+//! (`TileWork::resumable`). Two tile slots alternate, so the GPU works on
+//! one while the host reads the other back. A tile is dispatched into a
+//! device-local buffer and copied into a host-visible one, so shaders never
+//! write across PCIe.
 //!
 //! Everything a render needs on the device (command buffers, descriptor sets,
 //! fences, scene, tile and staging buffers) is created once per renderer and
@@ -19,6 +20,7 @@
 //! scene needs a larger one, so memory stays flat over an animation.
 
 use std::collections::VecDeque;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -264,6 +266,12 @@ pub struct GpuRenderer {
     pipeline: TracePipeline,
     /// Reused by every render; `None` until the first.
     resources: Mutex<Option<Resources>>,
+    /// Whether the last render had a tile that needed more than one pass:
+    /// the next starts its tiles resumable (`TileWork::resumable`), so a
+    /// run of renders of such work (progressive passes, animation frames)
+    /// redoes tiles only in its first. A wrong guess costs time, never
+    /// the image.
+    needed_passes: AtomicBool,
 }
 
 #[derive(Clone, Copy, Debug)]
@@ -288,8 +296,9 @@ struct TileWork {
     /// loads and stores cost Mesa 22.3 a seventh to a fifth of a render
     /// even where no pixel pauses. A tile that has pixels left after that
     /// pass is redone from its start with the resumable shader (same
-    /// image: the passes are deterministic), and so are the render's later
-    /// tiles from the start.
+    /// image: the passes are deterministic), and the render's later tiles
+    /// start resumable, as do the next render's
+    /// (`GpuRenderer::needed_passes`).
     resumable: bool,
 }
 
@@ -407,6 +416,7 @@ impl GpuRenderer {
             ctx: ctx.clone(),
             pipeline,
             resources: Mutex::new(None),
+            needed_passes: AtomicBool::new(false),
         })
     }
 
@@ -437,7 +447,9 @@ impl GpuRenderer {
     }
 
     /// Builds (or finds in the cache) the pipeline a render of `scene` with
-    /// `options` uses; returns the build time, zero when it was cached.
+    /// `options` starts with (resumable if the last render needed passes:
+    /// `TileWork::resumable`); returns the build time, zero when it was
+    /// cached.
     pub fn prepare(
         &self,
         scene: &GpuScene,
@@ -451,7 +463,14 @@ impl GpuRenderer {
             .map_or(Lists::Plain, |(_, lists)| lists);
         Ok(self
             .pipeline
-            .get(key(options, kernel, lists, scene, &uploads, false))?
+            .get(key(
+                options,
+                kernel,
+                lists,
+                scene,
+                &uploads,
+                self.needed_passes.load(Ordering::Relaxed),
+            ))?
             .1)
     }
 
@@ -741,28 +760,23 @@ impl GpuRenderer {
             }
         }
         let key = key(options, kernel, lists, scene, &uploads, false);
-        let (pipeline, build_time) = self.pipeline.get(key)?;
-        if !build_time.is_zero() {
-            timings.add("pipeline", build_time);
-        }
-        // The resumable pipeline, built when a tile first needs it.
-        let resumable_key = PipelineKey {
-            one_pass: false,
-            ..key
-        };
-        let mut resumable_pipeline = None;
+        // Each pipeline is built when a tile first needs it: the one-pass
+        // shader for a tile's first try, the resumable one after it
+        // (`TileWork::resumable`); a probe's is `key`'s.
+        let mut built: [Option<vk::Pipeline>; 2] = [None; 2];
         let mut pipeline_for = |work: &TileWork, timings: &mut Timings| {
-            if !work.resumable {
-                return Ok(pipeline);
-            }
-            if let Some(p) = resumable_pipeline {
+            let slot = &mut built[usize::from(work.resumable)];
+            if let Some(p) = *slot {
                 return Ok(p);
             }
-            let (p, build_time) = self.pipeline.get(resumable_key)?;
+            let (p, build_time) = self.pipeline.get(PipelineKey {
+                one_pass: key.one_pass && !work.resumable,
+                ..key
+            })?;
             if !build_time.is_zero() {
                 timings.add("pipeline", build_time);
             }
-            resumable_pipeline = Some(p);
+            *slot = Some(p);
             Ok::<_, GpuError>(p)
         };
 
@@ -812,7 +826,9 @@ impl GpuRenderer {
         let mut retries = 0u64;
         let mut redone = 0u64;
         // Probes keep no state and run once: their pipeline is `pipeline`.
-        let mut start_resumable = false;
+        let mut start_resumable =
+            kernel == Kernel::Render && self.needed_passes.load(Ordering::Relaxed);
+        let mut needed_passes = false;
         let dispatch_start = Instant::now();
         let mut next_tile = tiles.iter();
         let mut free: Vec<usize> = (0..SLOTS).rev().collect();
@@ -829,7 +845,7 @@ impl GpuRenderer {
                     budget: options.pass_budget.max(1),
                     left: rect.size[0] * rect.size[1],
                     rays: [0; 2],
-                    resumable: start_resumable && kernel == Kernel::Render,
+                    resumable: start_resumable,
                 };
                 let p = pipeline_for(&work, &mut timings)?;
                 self.submit_pass(&mut res.slots[s], p, lists, job, work, out_texels)?;
@@ -871,6 +887,7 @@ impl GpuRenderer {
                 // The pass kept no state to resume from: redo the tile.
                 work.resumable = true;
                 start_resumable = true;
+                needed_passes = true;
                 work.pass = 1;
                 work.left = work.rect.size[0] * work.rect.size[1];
                 work.rays = [0; 2];
@@ -878,6 +895,7 @@ impl GpuRenderer {
                 // Every pass reports, this one with no pixel finished.
                 progress(done_pixels, total_pixels);
             } else if status.remaining > 0 && kernel == Kernel::Render {
+                needed_passes = true;
                 work.rays[0] += u64::from(status.closest_rays);
                 work.rays[1] += u64::from(status.shadow_rays);
                 work.pass += 1;
@@ -904,6 +922,9 @@ impl GpuRenderer {
             self.submit_pass(&mut res.slots[s], p, lists, job, work, out_texels)?;
             passes += 1;
             in_flight.push_back((s, work));
+        }
+        if kernel == Kernel::Render {
+            self.needed_passes.store(needed_passes, Ordering::Relaxed);
         }
         timings.add(
             "dispatch",
