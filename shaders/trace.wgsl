@@ -332,8 +332,8 @@ override LEAF_ORDER: bool = false;
 // `status.remaining`, whereupon the host redoes the tile with the
 // resumable shader (src/gpu/render.rs: TileWork::resumable). Measured on
 // Mesa 22.3, whose llvmpipe runs a branch's loads and stores lane by lane
-// even when no lane takes it: the state's 32 words in and out were 14-20%
-// of a render's instructions.
+// even when no lane takes it: the state's words in and out were 12.6% of
+// test1's render instructions, 3.8% of `table`'s.
 override ONE_PASS: bool = false;
 const TANGENT_BAND: f32 = 0.000244140625;
 const ON_SURFACE: f32 = 0.00000095367431640625;

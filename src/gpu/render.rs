@@ -293,8 +293,8 @@ struct TileWork {
     rays: [u64; 2],
     /// Whether its passes keep the pixels' state. A render's tiles start
     /// without (`ONE_PASS`): most finish in one pass, and the state's
-    /// loads and stores cost Mesa 22.3 a seventh to a fifth of a render
-    /// even where no pixel pauses. A tile that has pixels left after that
+    /// loads and stores cost Mesa 22.3 up to an eighth of a render's
+    /// instructions (test1) even where no pixel pauses. A tile that has pixels left after that
     /// pass is redone from its start with the resumable shader (same
     /// image: the passes are deterministic), and the render's later tiles
     /// start resumable, as do the next render's
@@ -825,7 +825,7 @@ impl GpuRenderer {
         let mut passes = 0u64;
         let mut retries = 0u64;
         let mut redone = 0u64;
-        // Probes keep no state and run once: their pipeline is `pipeline`.
+        // Probes keep no state and run once: they never start resumable.
         let mut start_resumable =
             kernel == Kernel::Render && self.needed_passes.load(Ordering::Relaxed);
         let mut needed_passes = false;
