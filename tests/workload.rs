@@ -25,6 +25,18 @@ fn render_passes(
     tweak: impl FnOnce(&mut GpuRenderOptions),
 ) -> Option<Result<(Framebuffer, Timings), GpuError>> {
     let gpu = gpu()?.lock().unwrap_or_else(|e| e.into_inner());
+    Some(render_locked(&gpu, scene, w, h, tweak))
+}
+
+/// `render_passes` on a GPU the caller holds locked: for a sequence of
+/// renders with no other test's in between.
+fn render_locked(
+    gpu: &Gpu,
+    scene: &Scene,
+    w: u32,
+    h: u32,
+    tweak: impl FnOnce(&mut GpuRenderOptions),
+) -> Result<(Framebuffer, Timings), GpuError> {
     let before = gpu.ctx.validation_messages();
     let effects = Effects::resolve(&scene.settings);
     let packed = GpuScene::pack(scene, &Bvh::for_render(scene, &effects));
@@ -43,7 +55,7 @@ fn render_passes(
         messages, 0,
         "Vulkan validation reported {messages} message(s)"
     );
-    Some(result)
+    result
 }
 
 fn with_settings(mut scene: Scene, settings: Settings) -> Scene {
@@ -187,18 +199,11 @@ fn tiles_that_need_passes_are_redone_resumable_and_remembered() {
     // One lock for the whole sequence: the renderer remembers the last render.
     let gpu = gpu.lock().unwrap_or_else(|e| e.into_inner());
     let render = |scene: &Scene, pass_budget: u32| {
-        let effects = Effects::resolve(&scene.settings);
-        let packed = GpuScene::pack(scene, &Bvh::for_render(scene, &effects));
-        let options = GpuRenderOptions {
-            tile_size: 8,
-            pass_budget,
-            effects,
-            features: Features::of(scene, &effects),
-            ..Default::default()
-        };
-        gpu.renderer
-            .render(&packed, &Camera::new(12, 10), WHITE, &options, &|_, _| {})
-            .expect("GPU render succeeds")
+        render_locked(&gpu, scene, 12, 10, |o| {
+            o.tile_size = 8;
+            o.pass_budget = pass_budget;
+        })
+        .expect("GPU render succeeds")
     };
     let redos = |t: &Timings| t.counted(glint::gpu::RESUMABLE_REDOS);
     let simple = bowl(3);
@@ -383,23 +388,11 @@ fn prepare_builds_the_pipeline_the_render_uses() {
         } else {
             bowl(3)
         };
-        let before_effects = Effects::resolve(&before.settings);
-        let (_, t) = gpu
-            .renderer
-            .render(
-                &GpuScene::pack(&before, &Bvh::for_render(&before, &before_effects)),
-                &Camera::new(12, 10),
-                WHITE,
-                &GpuRenderOptions {
-                    tile_size: 8,
-                    pass_budget: if after_passes { 4 } else { 1 << 16 },
-                    effects: before_effects,
-                    features: Features::of(&before, &before_effects),
-                    ..Default::default()
-                },
-                &|_, _| {},
-            )
-            .expect("render succeeds");
+        let (_, t) = render_locked(&gpu, &before, 12, 10, |o| {
+            o.tile_size = 8;
+            o.pass_budget = if after_passes { 4 } else { 1 << 16 };
+        })
+        .expect("render succeeds");
         // 12x10 in 8x8 tiles: four.
         assert_eq!(t.counted("passes") > 4, after_passes);
         let effects = Effects::resolve(&scene.settings);

@@ -826,7 +826,7 @@ impl GpuRenderer {
         let mut retries = 0u64;
         let mut redone = 0u64;
         // Probes keep no state and run once: they never start resumable.
-        let mut start_resumable =
+        let start_resumable =
             kernel == Kernel::Render && self.needed_passes.load(Ordering::Relaxed);
         let mut needed_passes = false;
         let dispatch_start = Instant::now();
@@ -845,7 +845,8 @@ impl GpuRenderer {
                     budget: options.pass_budget.max(1),
                     left: rect.size[0] * rect.size[1],
                     rays: [0; 2],
-                    resumable: start_resumable,
+                    // A tile of this render needed passes: so will this.
+                    resumable: start_resumable || needed_passes,
                 };
                 let p = pipeline_for(&work, &mut timings)?;
                 self.submit_pass(&mut res.slots[s], p, lists, job, work, out_texels)?;
@@ -886,7 +887,6 @@ impl GpuRenderer {
             } else if status.remaining > 0 && kernel == Kernel::Render && !work.resumable {
                 // The pass kept no state to resume from: redo the tile.
                 work.resumable = true;
-                start_resumable = true;
                 needed_passes = true;
                 work.pass = 1;
                 work.left = work.rect.size[0] * work.rect.size[1];
