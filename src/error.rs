@@ -17,8 +17,17 @@ pub enum Error {
     },
     #[error(transparent)]
     Parse(#[from] ParseError),
+    /// Input refused before it could be parsed: binary data where a scene
+    /// was expected, or a stream past `--max-input`.
+    #[error("{path}: {error}")]
+    Input {
+        path: PathBuf,
+        error: crate::input::InputError,
+    },
     #[error(transparent)]
     Gpu(#[from] GpuError),
+    #[error(transparent)]
+    Model(#[from] crate::mesh::MeshError),
     #[error("cannot write image {path}: {error}")]
     WriteImage {
         path: PathBuf,
@@ -66,6 +75,8 @@ impl Error {
         match self {
             Error::ReadScene { .. }
             | Error::Parse(_)
+            | Error::Input { .. }
+            | Error::Model(_)
             | Error::ReadImage { .. }
             | Error::UnsupportedImageFormat(_)
             | Error::SizeMismatch(..)

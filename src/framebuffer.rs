@@ -316,11 +316,38 @@ pub fn read_framebuffer(path: &Path) -> Result<Framebuffer, Error> {
     })
 }
 
-fn open(path: &Path) -> Result<image::DynamicImage, Error> {
-    image::open(path).map_err(|e| Error::ReadImage {
+/// Reads and decodes an image file with bounded memory: its bytes under
+/// `--max-input` (a FIFO or device never reads forever), its decoded size
+/// under what the largest render (16384 x 16384 RGBA f32) needs.
+pub fn open(path: &Path) -> Result<image::DynamicImage, Error> {
+    let bytes = crate::input::read_path(path, crate::input::Kind::Binary).map_err(|e| {
+        Error::ReadImage {
+            path: path.to_path_buf(),
+            message: e.to_string(),
+        }
+    })?;
+    decode_image(&bytes, path)
+}
+
+/// Decodes an image held in memory; the format is the one `path`'s
+/// extension names, else the one its bytes start with.
+pub fn decode_image(bytes: &[u8], path: &Path) -> Result<image::DynamicImage, Error> {
+    const MAX_EDGE: u32 = 16384;
+    let error = |e: image::ImageError| Error::ReadImage {
         path: path.to_path_buf(),
         message: e.to_string(),
-    })
+    };
+    let mut reader = image::ImageReader::new(std::io::Cursor::new(bytes));
+    match image::ImageFormat::from_path(path) {
+        Ok(format) => reader.set_format(format),
+        Err(_) => reader = reader.with_guessed_format().map_err(|e| error(e.into()))?,
+    }
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(MAX_EDGE);
+    limits.max_image_height = Some(MAX_EDGE);
+    limits.max_alloc = Some(u64::from(MAX_EDGE) * u64::from(MAX_EDGE) * 16 + (64 << 20));
+    reader.limits(limits);
+    reader.decode().map_err(error)
 }
 
 #[cfg(test)]

@@ -122,6 +122,9 @@ impl fmt::Display for SceneInfo<'_> {
                 b.max.z,
                 m.load_time.as_secs_f64() * 1e3
             )?;
+            if !m.report.is_empty() {
+                writeln!(f, "  tolerated {}", m.report.summary())?;
+            }
         }
         if let Some(c) = &s.camera {
             writeln!(

@@ -20,6 +20,7 @@ pub mod framebuffer;
 pub mod gpu;
 pub mod hard;
 pub mod info;
+pub mod input;
 pub mod layout;
 pub mod lights_on_surfaces;
 pub mod memory;

@@ -155,10 +155,7 @@ pub fn stitch(parts: &[&Path]) -> Result<Stitched, Error> {
     let (mut overlapping, mut disagreeing) = (0u64, 0u64);
     for &path in parts {
         let kind = ImageFile::of(path)?;
-        let img = image::open(path).map_err(|e| Error::ReadImage {
-            path: path.to_path_buf(),
-            message: e.to_string(),
-        })?;
+        let img = crate::framebuffer::open(path)?;
         if !img.color().has_alpha() {
             return Err(Error::ReadImage {
                 path: path.to_path_buf(),

@@ -353,12 +353,25 @@ fn mesh_and_camera_errors_are_located() {
         e.contains("cut.ply, byte ") && e.contains("ends inside"),
         "{e}"
     );
+    // A model without materials in a block without one: the default
+    // material, and a warning at the block saying how to give one.
     write(d, "plain.off", off(&g).as_bytes());
-    let e = error_of(d, "1\namb: 0 0 0\nmesh file: plain.off\n");
+    let path = write(d, "plain.scene", b"1\namb: 0 0 0\nmesh file: plain.off\n");
+    let scene = read_scene(&path).expect("a model without materials loads");
+    let w = scene
+        .warnings
+        .iter()
+        .map(ToString::to_string)
+        .collect::<String>();
     assert!(
-        e.contains("brings no materials") && e.contains("dif:"),
-        "{e}"
+        w.contains("plain.scene:3:6") && w.contains("brings no materials") && w.contains("dif:"),
+        "{w}"
     );
+    let default = glint::mesh::DEFAULT_MATERIAL;
+    assert!(scene
+        .triangles
+        .iter()
+        .all(|t| *scene.material(&t.vertices[0]) == default));
     for (camera, want) in [
         ("camera eye: 1 1 1 look: 1 1 1", "no view"),
         ("camera up: 0 0 1", "no view"),

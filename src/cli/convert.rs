@@ -6,7 +6,8 @@ use glint::mesh::Format;
 
 #[derive(clap::Args, Debug)]
 pub struct ConvertArgs {
-    /// A model (.obj, .ply, .off) or a scene file (anything else).
+    /// A model (.obj, .ply, .off, .stl, .gltf, .glb) or a scene file
+    /// (anything else).
     input: PathBuf,
     /// A classic scene (.scene or any other name), or .obj (with OUT.mtl
     /// beside it).
@@ -27,7 +28,9 @@ pub fn run(args: ConvertArgs) -> anyhow::Result<ExitCode> {
     if !to_obj && Format::of(&args.out).is_some() {
         return Err(glint::Error::BadOutput {
             path: args.out.clone(),
-            reason: "convert writes a classic scene or .obj; .ply and .off are read only".into(),
+            reason: "convert writes a classic scene or .obj; .ply, .off, .stl, .gltf and .glb \
+                     are read only"
+                .into(),
         }
         .into());
     }
@@ -104,10 +107,16 @@ pub fn run(args: ConvertArgs) -> anyhow::Result<ExitCode> {
 /// ambient and one white light at the camera, so that it renders as it is.
 fn model_as_scene(args: &ConvertArgs) -> Result<glint::scene::Scene, glint::Error> {
     use glam::DVec3;
-    let mesh = glint::mesh::load(&args.input).map_err(|e| glint::Error::ReadImage {
-        path: args.input.clone(),
-        message: e.to_string(),
-    })?;
+    let start = std::time::Instant::now();
+    let mut mesh = glint::mesh::load(&args.input)?;
+    if mesh.faces.is_empty() {
+        return Err(glint::mesh::MeshError {
+            path: args.input.clone(),
+            at: None,
+            message: "nothing to convert: it holds no triangles (points, lines or nothing)".into(),
+        }
+        .into());
+    }
     let given = glint::scene::Material {
         kd: DVec3::from(args.dif),
         ks: DVec3::from(args.spe),
@@ -123,6 +132,13 @@ fn model_as_scene(args: &ConvertArgs) -> Result<glint::scene::Scene, glint::Erro
     };
     let mut ids = glint::scene::MaterialIds::default();
     scene.triangles = mesh.triangles(material, |p| p, |n| n, |m| ids.id(&mut scene.materials, m));
+    scene.meshes.push(glint::scene::MeshInfo {
+        file: args.input.display().to_string(),
+        triangles: scene.triangles.len(),
+        bounds: scene.bounds(),
+        load_time: start.elapsed(),
+        report: std::mem::take(&mut mesh.report),
+    });
     Ok(scene)
 }
 

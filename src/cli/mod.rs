@@ -28,6 +28,11 @@ pub struct Cli {
     /// unless it is set); default: RAYON_NUM_THREADS, else every core.
     #[arg(long, global = true, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=4096))]
     threads: Option<u32>,
+    /// The most bytes any one input (a scene, a model, standard input, a
+    /// pipe) may have; a stream that goes on past it ends with exit 2.
+    /// K, M, G or T for powers of 1024 [default: 16G]
+    #[arg(long, global = true, value_name = "BYTES", value_parser = glint::input::parse_size)]
+    max_input: Option<u64>,
 }
 
 #[derive(Subcommand, Debug)]
@@ -156,6 +161,9 @@ impl Cli {
 
 pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     set_threads(cli.threads)?;
+    if let Some(bytes) = cli.max_input {
+        glint::input::set_max_input(bytes);
+    }
     match cli.command {
         Command::Render(args) => render::run(args),
         Command::Compare(args) => compare::run(args),
@@ -249,6 +257,19 @@ pub fn print_warnings(scene: &glint::scene::Scene) {
             scene.more_warnings,
             glint::scene::WARNINGS_KEPT
         );
+    }
+    for m in &scene.meshes {
+        for w in &m.report.kept {
+            eprintln!("warning: {w}");
+        }
+        let more = m.report.more();
+        if more > 0 {
+            eprintln!(
+                "warning: {}: {more} more tolerated like the above ({})",
+                m.file,
+                m.report.summary()
+            );
+        }
     }
     let small = scene.unresolvable();
     if !small.is_empty() {

@@ -1,14 +1,27 @@
-//! Triangle meshes from model files (Wavefront OBJ with its MTL materials,
-//! PLY in ASCII and binary, OFF), for the scene format's `mesh` block.
+//! Triangle meshes from model files, for the scene format's `mesh` block:
+//! Wavefront OBJ with its MTL materials, PLY (ASCII and binary), OFF, STL
+//! (ASCII and binary) and glTF 2.0 (`.gltf` and `.glb`).
 //!
 //! Every reader produces a `Mesh`: positions, optional per-vertex normals
-//! and colours, and faces as triangles (polygons fanned from their first
-//! corner, which is right for the convex polygons these formats hold).
-//! Errors name the file and the line (byte offset in binary PLY).
+//! and colours, and faces as triangles (`build`: convex polygons fanned
+//! from their first corner, concave ones ear clipped). Input is read with
+//! bounded memory (`source`). Errors name the file and the line (byte
+//! offset in binary files, JSON path in glTF); what a reader tolerates
+//! instead of refusing, as mainstream importers do, is in the mesh's
+//! `report`, never silent.
 
+mod build;
+mod gltf;
+mod mtl;
 mod obj;
 mod off;
 mod ply;
+mod polygon;
+pub mod report;
+mod source;
+mod stl;
+mod text;
+mod write;
 
 use std::fmt;
 use std::path::{Path, PathBuf};
@@ -16,10 +29,24 @@ use std::path::{Path, PathBuf};
 use glam::DVec3;
 
 use crate::scene::Material;
+pub use report::{Report, Tolerance, Warning};
+pub use write::{write_obj, ObjWritten};
+
+/// A face corner's normal index meaning "the smooth normal": the file's
+/// normal there is unusable (not finite, no length).
+pub const SMOOTH: u32 = u32::MAX;
+
+/// The material of faces that neither the file nor the `mesh` block gives
+/// one: a mid grey, no highlight (MTL's own default diffuse colour).
+pub const DEFAULT_MATERIAL: Material = Material {
+    kd: DVec3::splat(0.8),
+    ks: DVec3::ZERO,
+    shininess: 1.0,
+};
 
 /// One triangle of a mesh: indices into the mesh's positions, and where the
-/// file gives them per corner, into its normals; its material, if the file
-/// assigns one.
+/// file gives them per corner, into its normals (`SMOOTH` where that one is
+/// unusable); its material, if the file assigns one.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Face {
     pub positions: [u32; 3],
@@ -35,8 +62,10 @@ pub struct Mesh {
     /// Per position, linear [0, 1] RGB, when the file has vertex colours.
     pub colors: Vec<DVec3>,
     pub faces: Vec<Face>,
-    /// Materials the file defines (OBJ `usemtl` from its `mtllib`).
+    /// Materials the file defines (OBJ `usemtl` from its `mtllib`, glTF's).
     pub materials: Vec<Material>,
+    /// What was tolerated in reading it.
+    pub report: Report,
 }
 
 /// What is wrong in a model file, and where.
@@ -59,12 +88,17 @@ impl fmt::Display for MeshError {
 
 impl std::error::Error for MeshError {}
 
-/// The model formats, by extension.
+/// The model formats, by extension (and for STL and glTF, by content).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Format {
     Obj,
     Ply,
     Off,
+    /// Binary STL (`read` tells it from ASCII by content).
+    Stl,
+    StlAscii,
+    Gltf,
+    Glb,
 }
 
 impl Format {
@@ -74,28 +108,87 @@ impl Format {
             "obj" => Some(Format::Obj),
             "ply" => Some(Format::Ply),
             "off" => Some(Format::Off),
+            "stl" => Some(Format::Stl),
+            "gltf" => Some(Format::Gltf),
+            "glb" => Some(Format::Glb),
             _ => None,
+        }
+    }
+
+    /// What messages call it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Format::Obj => "OBJ",
+            Format::Ply => "PLY",
+            Format::Off => "OFF",
+            Format::Stl | Format::StlAscii => "STL",
+            Format::Gltf | Format::Glb => "glTF",
         }
     }
 }
 
-/// Reads a model file, its format chosen by extension.
+/// Whether a loader reads the files a model refers to (MTL libraries,
+/// glTF buffers), or treats them as missing (fuzzing, and models that
+/// did not come from a file).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Refs {
+    Disk,
+    None,
+}
+
+/// The extensions `load` reads, for messages.
+pub const EXTENSIONS: &str = ".obj, .ply, .off, .stl, .gltf or .glb";
+
+/// Reads a model file, its format chosen by extension (STL's encoding and
+/// GLB by content), with bounded memory whatever the file is.
 pub fn load(path: &Path) -> Result<Mesh, MeshError> {
-    let error = |message: String| MeshError {
+    let format = Format::of(path).ok_or_else(|| MeshError {
         path: path.to_path_buf(),
         at: None,
-        message,
-    };
-    let format = Format::of(path)
-        .ok_or_else(|| error("unknown model format; use an .obj, .ply or .off file".to_string()))?;
-    let bytes = std::fs::read(path).map_err(|e| error(format!("cannot read it: {e}")))?;
+        message: format!("unknown model format; use an {EXTENSIONS} file"),
+    })?;
+    let src = source::read(path, format)?;
+    let mut mesh = parse(&src.bytes, src.format, path, Refs::Disk)?;
+    let mut report = src.report;
+    report.merge(std::mem::take(&mut mesh.report));
+    mesh.report = report;
+    Ok(mesh)
+}
+
+/// Parses a model from its bytes; `path` names it in messages and is where
+/// files it refers to (MTL libraries, glTF buffers) are looked for, if
+/// `refs` says so. For fuzzing and for callers that hold the bytes already.
+pub fn parse(bytes: &[u8], format: Format, path: &Path, refs: Refs) -> Result<Mesh, MeshError> {
     let mesh = match format {
-        Format::Obj => obj::parse(&bytes, path)?,
-        Format::Ply => ply::parse(&bytes, path)?,
-        Format::Off => off::parse(&bytes, path)?,
+        Format::Obj => obj::parse(bytes, path, refs)?,
+        Format::Ply => ply::parse(bytes, path)?,
+        Format::Off => off::parse(bytes, path)?,
+        Format::Stl => stl::parse_binary(bytes, path)?,
+        Format::StlAscii => stl::parse_ascii(bytes, path)?,
+        Format::Gltf | Format::Glb => gltf::parse(bytes, path, refs)?,
     };
     mesh.check(path)?;
     Ok(mesh)
+}
+
+/// Reads a model from any reader (standard input, a pipe), with the same
+/// bounds as `load`; files it refers to are not read.
+pub fn read(reader: impl std::io::Read, format: Format, path: &Path) -> Result<Mesh, MeshError> {
+    let src = source::read_from(reader, path, format)?;
+    let mut mesh = parse(&src.bytes, src.format, path, Refs::None)?;
+    let mut report = src.report;
+    report.merge(std::mem::take(&mut mesh.report));
+    mesh.report = report;
+    Ok(mesh)
+}
+
+/// An MTL library's materials, by name, for fuzzing the MTL reader alone.
+pub fn parse_mtl(bytes: &[u8], path: &Path) -> Result<(Vec<Material>, Report), MeshError> {
+    let mut materials = Vec::new();
+    let mut names = std::collections::HashMap::new();
+    let mut report = Report::default();
+    mtl::read(bytes, path, &mut materials, &mut names, &mut report)?;
+    Ok((materials, report))
 }
 
 impl Mesh {
@@ -107,7 +200,8 @@ impl Mesh {
         let nm = self.materials.len() as u32;
         for (i, f) in self.faces.iter().enumerate() {
             let bad = f.positions.iter().any(|&p| p >= np)
-                || f.normals.is_some_and(|n| n.iter().any(|&k| k >= nn))
+                || f.normals
+                    .is_some_and(|n| n.iter().any(|&k| k >= nn && k != SMOOTH))
                 || f.material.is_some_and(|m| m >= nm);
             if bad {
                 return Err(MeshError {
@@ -160,13 +254,12 @@ impl Mesh {
 
     /// The mesh as scene triangles, each vertex placed by `place` and its
     /// normal turned by `turn` (then normalized as the classic parser
-    /// does, `unit`). A face's material is
-    /// `material` if given, else the file's for it, else (a file with
-    /// vertex colours only) black with no highlight; a vertex colour, where
-    /// the file has them, is the diffuse colour. Normals are the file's,
-    /// else `smooth_normals`. Callers check that every face has a material
-    /// (`missing_material`). `material_id` gives a material's index in the
-    /// scene's table (`Scene::add_material`, `MaterialIds`).
+    /// does, `unit`). A face's material is `material` if given, else the
+    /// file's for it, else `DEFAULT_MATERIAL` (with vertex colours: black
+    /// with no highlight, the colour being the diffuse one); callers warn
+    /// when the default is used (`missing_material`). Normals are the
+    /// file's, else `smooth_normals`. `material_id` gives a material's
+    /// index in the scene's table (`Scene::add_material`, `MaterialIds`).
     pub fn triangles(
         &self,
         material: Option<Material>,
@@ -175,7 +268,7 @@ impl Mesh {
         mut material_id: impl FnMut(Material) -> u32,
     ) -> Vec<crate::scene::Triangle> {
         use crate::scene::{Triangle, Vertex};
-        let smooth = if self.normals.is_empty() {
+        let smooth = if self.needs_smooth_normals() {
             self.smooth_normals()
         } else {
             Vec::new()
@@ -185,16 +278,21 @@ impl Mesh {
             .map(|f| {
                 let base = material
                     .or_else(|| f.material.map(|m| self.materials[m as usize]))
-                    .unwrap_or(Material {
-                        kd: DVec3::ZERO,
-                        ks: DVec3::ZERO,
-                        shininess: 1.0,
+                    .unwrap_or(if self.colors.is_empty() {
+                        DEFAULT_MATERIAL
+                    } else {
+                        // Vertex colours give the diffuse colour.
+                        Material {
+                            kd: DVec3::ZERO,
+                            ks: DVec3::ZERO,
+                            shininess: 1.0,
+                        }
                     });
                 let vertices = [0, 1, 2].map(|k| {
                     let p = f.positions[k] as usize;
                     let n = match f.normals {
-                        Some(ns) => self.normals[ns[k] as usize],
-                        None => smooth[p],
+                        Some(ns) if ns[k] != SMOOTH => self.normals[ns[k] as usize],
+                        _ => smooth[p],
                     };
                     let mut m = base;
                     if let Some(c) = self.colors.get(p) {
@@ -214,16 +312,29 @@ impl Mesh {
             .collect()
     }
 
+    /// Whether some corner takes the smooth normal: its face has no
+    /// normals from the file, or that normal is unusable.
+    pub fn needs_smooth_normals(&self) -> bool {
+        self.faces
+            .iter()
+            .any(|f| f.normals.is_none_or(|n| n.contains(&SMOOTH)))
+    }
+
     /// Whether some face would have no material without one given: the
     /// file has no vertex colours and no material for it.
     pub fn missing_material(&self) -> bool {
         self.colors.is_empty() && self.faces.iter().any(|f| f.material.is_none())
     }
 
+    /// The bounds of the vertices faces use (a file's unused or
+    /// non-finite vertices do not count).
     pub fn bounds(&self) -> crate::scene::Bounds {
-        self.positions
+        self.faces
             .iter()
-            .fold(crate::scene::Bounds::EMPTY, |b, &p| b.grow(p))
+            .flat_map(|f| f.positions)
+            .fold(crate::scene::Bounds::EMPTY, |b, p| {
+                b.grow(self.positions[p as usize])
+            })
     }
 }
 
@@ -238,150 +349,3 @@ fn unit(n: DVec3) -> DVec3 {
         n.try_normalize().unwrap_or(DVec3::ZERO)
     }
 }
-
-/// A cursor over a text model file: whitespace-separated tokens, `#`
-/// comments to the end of the line, line numbers for messages.
-pub(crate) struct Text<'a> {
-    src: &'a [u8],
-    pos: usize,
-    line: usize,
-    path: &'a Path,
-}
-
-impl<'a> Text<'a> {
-    pub fn new(src: &'a [u8], path: &'a Path) -> Text<'a> {
-        Text {
-            src,
-            pos: 0,
-            line: 1,
-            path,
-        }
-    }
-
-    pub fn error(&self, message: impl Into<String>) -> MeshError {
-        MeshError {
-            path: self.path.to_path_buf(),
-            at: Some(format!("line {}", self.line)),
-            message: message.into(),
-        }
-    }
-
-    /// The next token, crossing line ends; None at the end of the file.
-    pub fn token(&mut self) -> Option<&'a [u8]> {
-        loop {
-            self.skip_blanks();
-            match self.src.get(self.pos) {
-                None => return None,
-                Some(b'\n') => {
-                    self.pos += 1;
-                    self.line += 1;
-                }
-                Some(_) => return self.word(),
-            }
-        }
-    }
-
-    /// The next token on this line; None at its end (the line end is not
-    /// consumed).
-    pub fn token_on_line(&mut self) -> Option<&'a [u8]> {
-        self.skip_blanks();
-        match self.src.get(self.pos) {
-            None | Some(b'\n') => None,
-            Some(_) => self.word(),
-        }
-    }
-
-    /// Moves past the end of the current line.
-    pub fn next_line(&mut self) {
-        while let Some(&c) = self.src.get(self.pos) {
-            self.pos += 1;
-            if c == b'\n' {
-                self.line += 1;
-                return;
-            }
-        }
-    }
-
-    /// Where the cursor is, in bytes (binary PLY data starts here).
-    pub fn offset(&self) -> usize {
-        self.pos
-    }
-
-    /// The rest of the line, trimmed (for names with spaces).
-    pub fn rest_of_line(&mut self) -> &'a [u8] {
-        let start = self.pos;
-        while let Some(&c) = self.src.get(self.pos) {
-            if c == b'\n' || c == b'#' {
-                break;
-            }
-            self.pos += 1;
-        }
-        self.src[start..self.pos].trim_ascii()
-    }
-
-    fn skip_blanks(&mut self) {
-        while let Some(&c) = self.src.get(self.pos) {
-            match c {
-                b' ' | b'\t' | b'\r' | b'\x0c' | b'\x0b' => self.pos += 1,
-                b'#' => {
-                    while self.src.get(self.pos).is_some_and(|&c| c != b'\n') {
-                        self.pos += 1;
-                    }
-                }
-                _ => return,
-            }
-        }
-    }
-
-    fn word(&mut self) -> Option<&'a [u8]> {
-        let start = self.pos;
-        while let Some(&c) = self.src.get(self.pos) {
-            if c.is_ascii_whitespace() || c == b'#' {
-                break;
-            }
-            self.pos += 1;
-        }
-        Some(&self.src[start..self.pos])
-    }
-
-    /// A finite number token, or an error saying what was expected.
-    pub fn number(&mut self, tok: Option<&[u8]>, what: &str) -> Result<f64, MeshError> {
-        let Some(t) = tok else {
-            return Err(self.error(format!("expected {what}, found the end of the line")));
-        };
-        match crate::scene::number::parse_f64(t) {
-            Some(v) if v.is_finite() && v.abs() <= f64::from(f32::MAX) => Ok(v),
-            _ => Err(self.error(format!(
-                "expected {what}, found `{}`",
-                String::from_utf8_lossy(t)
-            ))),
-        }
-    }
-
-    /// A whole number token.
-    pub fn integer(&mut self, tok: Option<&[u8]>, what: &str) -> Result<i64, MeshError> {
-        let Some(t) = tok else {
-            return Err(self.error(format!("expected {what}, found the end of the file")));
-        };
-        std::str::from_utf8(t)
-            .ok()
-            .and_then(|s| s.parse::<i64>().ok())
-            .ok_or_else(|| {
-                self.error(format!(
-                    "expected {what}, found `{}`",
-                    String::from_utf8_lossy(t)
-                ))
-            })
-    }
-}
-
-/// Fans a polygon's corners into triangles (corner 0, k, k + 1).
-pub(crate) fn fan<T: Copy>(corners: &[T], mut emit: impl FnMut([T; 3])) {
-    for k in 1..corners.len().saturating_sub(1) {
-        emit([corners[0], corners[k], corners[k + 1]]);
-    }
-}
-
-/// The faces the file defines, for writing a scene back as OBJ
-/// (`glint convert`): see `write_obj`.
-pub use obj::write_obj;

@@ -1,23 +1,31 @@
-//! Wavefront OBJ: `v x y z [r g b]`, `vn`, `f` with `v`, `v/vt`, `v//vn` or
-//! `v/vt/vn` corners (negative indices count back from the last), polygons
-//! fanned; `mtllib` and `usemtl` with MTL's `Kd`, `Ks` and `Ns`. Texture
-//! coordinates, groups and smoothing groups are read past.
+//! Wavefront OBJ: `v x y z [w | r g b]`, `vn`, `f` with `v`, `v/vt`,
+//! `v//vn` or `v/vt/vn` corners (negative indices count back from the
+//! last), `mtllib` and `usemtl` (`mtl`). Texture coordinates, groups and
+//! smoothing groups are read past; points and lines (`p`, `l`) are not
+//! surfaces and are skipped with a warning.
+//!
+//! Tolerated, with a warning: a material no library defines or a library
+//! that cannot be read (the `mesh` block's material, else the default),
+//! normals given but never used, faces that give normals for some corners
+//! only, vertex colours on some vertices only.
 
 use std::collections::HashMap;
-use std::fmt::Write as _;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use glam::DVec3;
 
-use super::{fan, Face, Mesh, MeshError, Text};
-use crate::scene::{Material, Scene};
+use super::build::{Builder, Loc};
+use super::report::Tolerance;
+use super::text::{show, Text};
+use super::{Mesh, MeshError, Refs};
 
-pub fn parse(src: &[u8], path: &Path) -> Result<Mesh, MeshError> {
+pub fn parse(src: &[u8], path: &Path, refs: Refs) -> Result<Mesh, MeshError> {
     let mut t = Text::new(src, path);
-    let mut mesh = Mesh::default();
+    let mut b = Builder::new(path);
     let mut names: HashMap<String, u32> = HashMap::new();
     let mut current: Option<u32> = None;
     let mut corners: Vec<(u32, Option<u32>)> = Vec::new();
+    let mut colors: Vec<Option<DVec3>> = Vec::new();
     let mut colored = 0usize;
     while let Some(key) = t.token() {
         match key {
@@ -25,82 +33,165 @@ pub fn parse(src: &[u8], path: &Path) -> Result<Mesh, MeshError> {
                 let mut v = [0.0; 3];
                 for (k, c) in v.iter_mut().enumerate() {
                     let tok = t.token_on_line();
-                    *c = t.number(tok, ["x", "y", "z"][k])?;
+                    // `nan` and `inf` are numbers too: their faces are
+                    // dropped by `build`, with a warning.
+                    if let Some(v) = tok
+                        .and_then(crate::scene::number::parse_f64)
+                        .filter(|v| !v.is_finite())
+                    {
+                        *c = v;
+                        continue;
+                    }
+                    let (value, cut) = t.number_lenient(tok, ["x", "y", "z"][k])?;
+                    if cut {
+                        b.warn(
+                            Tolerance::Number,
+                            t.at(),
+                            format!(
+                                "the malformed number {} is read as {value}",
+                                show(tok.unwrap_or_default())
+                            ),
+                        );
+                    }
+                    *c = value;
                 }
-                mesh.positions.push(DVec3::from(v));
+                b.mesh.positions.push(DVec3::from(v));
                 // `v x y z r g b`: a vertex colour (a fourth value alone is w).
-                let extra: Vec<&[u8]> = std::iter::from_fn(|| t.token_on_line()).collect();
+                let extra: Vec<&[u8]> = std::iter::from_fn(|| t.token_on_line()).take(4).collect();
                 if extra.len() >= 3 {
                     let mut rgb = [0.0; 3];
                     for (c, tok) in rgb.iter_mut().zip(&extra) {
                         *c = t.number(Some(tok), "a colour component")?;
                     }
-                    mesh.colors.push(DVec3::from(rgb));
+                    colors.push(Some(DVec3::from(rgb)));
                     colored += 1;
+                } else {
+                    colors.push(None);
                 }
             }
             b"vn" => {
-                let mut n = [0.0; 3];
-                for c in &mut n {
-                    let tok = t.token_on_line();
-                    *c = t.number(tok, "a normal component")?;
-                }
-                mesh.normals.push(DVec3::from(n));
+                // Repaired rather than refused: a normal that is not a
+                // finite number becomes the smooth normal (`build`).
+                let n = [0, 1, 2].map(|_| Text::number_or_nan(t.token_on_line()));
+                b.mesh.normals.push(DVec3::from(n));
             }
-            b"f" => {
+            b"f" | b"fo" => {
                 corners.clear();
                 while let Some(tok) = t.token_on_line() {
-                    corners.push(corner(&t, tok, &mesh)?);
+                    corners.push(corner(&t, tok, &b.mesh)?);
                 }
-                if corners.len() < 3 {
-                    return Err(t.error(format!(
-                        "a face needs at least 3 corners, found {}",
-                        corners.len()
-                    )));
-                }
-                let with_normals = corners.iter().all(|c| c.1.is_some());
-                fan(&corners, |c| {
-                    mesh.faces.push(Face {
-                        positions: c.map(|k| k.0),
-                        normals: with_normals.then(|| c.map(|k| k.1.unwrap_or(0))),
-                        material: current,
-                    });
-                });
+                b.polygon(corners.iter().copied(), current, Loc::Line(t.line() as u64));
+            }
+            b"p" | b"l" => {
+                let what = if key == b"p" { "points" } else { "a line" };
+                b.warn(
+                    Tolerance::NotSurface,
+                    t.at(),
+                    format!("{what} (`{}`), not a surface, skipped", key[0] as char),
+                );
             }
             b"mtllib" => {
-                let name = String::from_utf8_lossy(t.rest_of_line()).into_owned();
-                let file = path.parent().unwrap_or(Path::new(".")).join(&name);
-                let text = std::fs::read(&file).map_err(|e| {
-                    t.error(format!(
-                        "cannot read its material library {}: {e}",
-                        file.display()
-                    ))
-                })?;
-                read_mtl(&text, &file, &mut mesh.materials, &mut names)?;
+                let line = String::from_utf8_lossy(t.rest_of_line()).into_owned();
+                read_libraries(&mut b, &t, &line, refs, &mut names)?;
             }
             b"usemtl" => {
                 let name = String::from_utf8_lossy(t.rest_of_line()).into_owned();
-                current = Some(*names.get(&name).ok_or_else(|| {
-                    t.error(format!(
-                        "material `{name}` is not defined by any `mtllib` before it"
-                    ))
-                })?);
+                current = names.get(&name).copied();
+                if current.is_none() {
+                    b.warn(
+                        Tolerance::UndefinedMaterial,
+                        t.at(),
+                        format!(
+                            "material `{name}` is defined by no material library read before \
+                             it; its faces take the mesh block's material, else the default"
+                        ),
+                    );
+                }
             }
             _ => {}
         }
         t.next_line();
     }
-    if colored != 0 && colored != mesh.positions.len() {
-        return Err(MeshError {
-            path: path.to_path_buf(),
-            at: None,
-            message: format!(
-                "{colored} of {} vertices have colours (`v x y z r g b`); give all or none",
-                mesh.positions.len()
+    if colored == colors.len() {
+        b.mesh.colors = colors.into_iter().flatten().collect();
+    } else if colored > 0 {
+        b.warn(
+            Tolerance::PartialColors,
+            None,
+            format!(
+                "{colored} of {} vertices have colours (`v x y z r g b`); vertex colours are \
+                 ignored",
+                colors.len()
             ),
-        });
+        );
     }
-    Ok(mesh)
+    b.finish()
+}
+
+/// `mtllib` names one library, or several separated by spaces (a name
+/// with spaces is tried whole first). Windows paths (`..\mat\a.mtl`) are
+/// tried with `/` too.
+fn read_libraries(
+    b: &mut Builder,
+    t: &Text,
+    line: &str,
+    refs: Refs,
+    names: &mut HashMap<String, u32>,
+) -> Result<(), MeshError> {
+    let base = b.path.parent().unwrap_or(Path::new(".")).to_path_buf();
+    let whole = vec![line.to_string()];
+    let split: Vec<String> = line.split_whitespace().map(str::to_string).collect();
+    let mut last_error = String::from("no file name");
+    for group in [whole, split] {
+        let mut read = 0;
+        for name in &group {
+            match read_library(&base, name, refs) {
+                Ok((file, text)) => {
+                    let mut report = std::mem::take(&mut b.mesh.report);
+                    super::mtl::read(&text, &file, &mut b.mesh.materials, names, &mut report)?;
+                    b.mesh.report = report;
+                    read += 1;
+                }
+                Err(e) => last_error = e,
+            }
+        }
+        if read > 0 {
+            return Ok(());
+        }
+    }
+    b.warn(
+        Tolerance::MissingLibrary,
+        t.at(),
+        format!(
+            "cannot read the material library `{line}` ({last_error}); faces using its \
+             materials take the mesh block's material, else the default"
+        ),
+    );
+    Ok(())
+}
+
+fn read_library(base: &Path, name: &str, refs: Refs) -> Result<(PathBuf, Vec<u8>), String> {
+    if name.is_empty() {
+        return Err("no file name".into());
+    }
+    if refs == Refs::None {
+        return Err("files a model refers to are not read here".into());
+    }
+    let mut candidates = vec![base.join(name)];
+    if name.contains('\\') {
+        candidates.push(base.join(name.replace('\\', "/")));
+    }
+    let mut last = String::new();
+    for file in candidates {
+        let kind = crate::input::Kind::Text {
+            what: "material library",
+        };
+        match super::source::read_referenced(&file, kind) {
+            Ok(bytes) => return Ok((file, bytes)),
+            Err(e) => last = format!("{}: {e}", file.display()),
+        }
+    }
+    Err(last)
 }
 
 /// One `f` corner: `v`, `v/vt`, `v//vn` or `v/vt/vn`, 1-based or negative.
@@ -112,11 +203,15 @@ fn corner(t: &Text, tok: &[u8], mesh: &Mesh) -> Result<(u32, Option<u32>), MeshE
             .and_then(|s| s.parse().ok())
             .ok_or_else(|| {
                 t.error(format!(
-                    "expected a {what} index in the face corner `{}`",
-                    String::from_utf8_lossy(tok)
+                    "expected a {what} index in the face corner {}",
+                    show(tok)
                 ))
             })?;
-        let index = if i < 0 { count as i64 + i } else { i - 1 };
+        let index = if i < 0 {
+            (count as i64).saturating_add(i)
+        } else {
+            i - 1
+        };
         if i == 0 || index < 0 || index >= count as i64 {
             return Err(t.error(format!(
                 "{what} index {i} refers to none of the {count} defined so far"
@@ -135,131 +230,4 @@ fn corner(t: &Text, tok: &[u8], mesh: &Mesh) -> Result<(u32, Option<u32>), MeshE
         _ => None,
     };
     Ok((v, n))
-}
-
-/// `newmtl`, `Kd`, `Ks`, `Ns` of an MTL file; other statements are read
-/// past. A material without `Ks` or `Ns` takes 0 for them (MTL's defaults).
-fn read_mtl(
-    src: &[u8],
-    path: &Path,
-    materials: &mut Vec<Material>,
-    names: &mut HashMap<String, u32>,
-) -> Result<(), MeshError> {
-    let mut t = Text::new(src, path);
-    let mut current: Option<usize> = None;
-    while let Some(key) = t.token() {
-        let key = key.to_ascii_lowercase();
-        if key == b"newmtl" {
-            let name = String::from_utf8_lossy(t.rest_of_line()).into_owned();
-            names.insert(name, materials.len() as u32);
-            materials.push(Material {
-                kd: DVec3::splat(0.8),
-                ks: DVec3::ZERO,
-                shininess: 0.0,
-            });
-            current = Some(materials.len() - 1);
-        } else if matches!(key.as_slice(), b"kd" | b"ks" | b"ns") {
-            let Some(m) = current.map(|i| &mut materials[i]) else {
-                return Err(t.error("a material property before any `newmtl`"));
-            };
-            if key == b"ns" {
-                let tok = t.token_on_line();
-                m.shininess = t.number(tok, "the shininess").and_then(|v| {
-                    if v < 0.0 {
-                        Err(t.error("shininess must be zero or more"))
-                    } else {
-                        Ok(v)
-                    }
-                })?;
-            } else {
-                let mut c = [0.0; 3];
-                for v in &mut c {
-                    let tok = t.token_on_line();
-                    *v = t.number(tok, "a colour component")?;
-                }
-                if key == b"kd" {
-                    m.kd = DVec3::from(c);
-                } else {
-                    m.ks = DVec3::from(c);
-                }
-            }
-        }
-        t.next_line();
-    }
-    Ok(())
-}
-
-/// What `write_obj` wrote, and what OBJ could not hold.
-#[derive(Clone, Debug, Default, PartialEq)]
-pub struct ObjWritten {
-    pub triangles: usize,
-    pub materials: usize,
-    /// Triangles whose corners have different materials: OBJ gives a face
-    /// one, so the first corner's was written.
-    pub mixed_materials: usize,
-    pub spheres_skipped: usize,
-    pub lights_skipped: usize,
-}
-
-/// The scene's triangles as OBJ text (positions shared where equal, a
-/// normal per corner) and its materials as MTL text named `mtl_name`.
-pub fn write_obj(scene: &Scene, mtl_name: &str) -> (String, String, ObjWritten) {
-    let mut obj = format!(
-        "# written by glint convert: {} triangles\nmtllib {mtl_name}\n",
-        scene.triangles.len()
-    );
-    let mut mtl = String::from("# written by glint convert\n");
-    let mut info = ObjWritten {
-        triangles: scene.triangles.len(),
-        spheres_skipped: scene.spheres.len(),
-        lights_skipped: scene.lights.len(),
-        ..ObjWritten::default()
-    };
-    let key = |v: DVec3| v.to_array().map(f64::to_bits);
-    let mut positions: HashMap<[u64; 3], usize> = HashMap::new();
-    let mut materials: HashMap<[u64; 7], usize> = HashMap::new();
-    let mut faces = String::new();
-    let mut normals = 0usize;
-    let mut current: Option<usize> = None;
-    for t in &scene.triangles {
-        let m = *scene.material(&t.vertices[0]);
-        if t.vertices.iter().any(|v| *scene.material(v) != m) {
-            info.mixed_materials += 1;
-        }
-        let mkey = m.key();
-        let next = materials.len();
-        let id = *materials.entry(mkey).or_insert_with(|| {
-            let _ = writeln!(
-                mtl,
-                "newmtl m{next}\nKd {} {} {}\nKs {} {} {}\nNs {}",
-                m.kd.x, m.kd.y, m.kd.z, m.ks.x, m.ks.y, m.ks.z, m.shininess
-            );
-            next
-        });
-        if current != Some(id) {
-            let _ = writeln!(faces, "usemtl m{id}");
-            current = Some(id);
-        }
-        let mut corner = [(0usize, 0usize); 3];
-        for (c, v) in corner.iter_mut().zip(&t.vertices) {
-            let next = positions.len();
-            let p = *positions.entry(key(v.position)).or_insert_with(|| {
-                let q = v.position;
-                let _ = writeln!(obj, "v {} {} {}", q.x, q.y, q.z);
-                next
-            });
-            let n = v.normal;
-            let _ = writeln!(obj, "vn {} {} {}", n.x, n.y, n.z);
-            normals += 1;
-            *c = (p + 1, normals);
-        }
-        let _ = writeln!(
-            faces,
-            "f {}//{} {}//{} {}//{}",
-            corner[0].0, corner[0].1, corner[1].0, corner[1].1, corner[2].0, corner[2].1
-        );
-    }
-    obj.push_str(&faces);
-    info.materials = materials.len();
-    (obj, mtl, info)
 }

@@ -1,14 +1,18 @@
 //! PLY (Stanford polygon files), ASCII and binary of either byte order:
 //! the `vertex` element's `x y z`, optional `nx ny nz` and `red green blue`
 //! (integers 0-255 or floats 0-1), and the `face` element's
-//! `vertex_indices` (or `vertex_index`) lists, fanned. Other elements and
-//! properties are read past.
+//! `vertex_indices` (or `vertex_index`) lists. Other elements and
+//! properties are read past. Normals that are not finite are repaired
+//! (`build`), as are degenerate faces; a file of points only loads with a
+//! warning from the scene.
 
 use std::path::Path;
 
 use glam::DVec3;
 
-use super::{fan, Face, Mesh, MeshError, Text};
+use super::build::{Builder, Loc};
+use super::text::Text;
+use super::{Mesh, MeshError};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 enum Scalar {
@@ -85,11 +89,20 @@ enum Reader<'a> {
 }
 
 impl Reader<'_> {
-    fn value(&mut self, ty: Scalar, what: &str) -> Result<f64, MeshError> {
+    /// The next value; a float that is not finite is an error unless
+    /// `any` (normals, which are repaired instead).
+    fn value(&mut self, ty: Scalar, what: &str, any: bool) -> Result<f64, MeshError> {
         match self {
             Reader::Ascii(t) => {
                 let tok = t.token();
-                t.number(tok, what)
+                if !any {
+                    return t.number(tok, what);
+                }
+                match tok.and_then(crate::scene::number::parse_f64) {
+                    Some(v) => Ok(v),
+                    None if tok.is_some() => Ok(f64::NAN),
+                    None => t.number(tok, what),
+                }
             }
             Reader::Binary {
                 src,
@@ -121,11 +134,18 @@ impl Reader<'_> {
                     Scalar::F32 => f64::from(f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
                     Scalar::F64 => f64::from_le_bytes(b),
                 };
-                if !v.is_finite() {
+                if !v.is_finite() && !any {
                     return Err(self.error(format!("{what} is not a finite number")));
                 }
                 Ok(v)
             }
+        }
+    }
+
+    fn loc(&mut self) -> Loc {
+        match self {
+            Reader::Ascii(t) => Loc::Line(t.next_token_line() as u64),
+            Reader::Binary { pos, .. } => Loc::Byte(*pos as u64),
         }
     }
 
@@ -230,9 +250,12 @@ pub fn parse(src: &[u8], path: &Path) -> Result<Mesh, MeshError> {
             path,
         },
     };
-    let mut mesh = Mesh::default();
+    let mut b = Builder::new(path);
     let mut corners: Vec<u32> = Vec::new();
     for element in &elements {
+        if element.properties.is_empty() {
+            continue;
+        }
         let is_vertex = element.name == b"vertex";
         let is_face = element.name == b"face";
         let find = |n: &[&[u8]]| {
@@ -257,6 +280,13 @@ pub fn parse(src: &[u8], path: &Path) -> Result<Mesh, MeshError> {
         }
         let has_normals = is_vertex && nxyz.iter().all(Option::is_some);
         let has_colors = is_vertex && rgb.iter().all(Option::is_some);
+        // Non-finite normals and positions are repaired or dropped by
+        // `build`, with warnings; other values must be finite.
+        let repaired: Vec<bool> = (0..element.properties.len())
+            .map(|k| {
+                (has_normals && nxyz.contains(&Some(k))) || (is_vertex && xyz.contains(&Some(k)))
+            })
+            .collect();
         // Integer colours are 0-255 levels, float ones 0-1.
         let color_levels = rgb[0].map_or(1.0, |i| {
             if element.properties[i].ty.is_integer() {
@@ -265,76 +295,60 @@ pub fn parse(src: &[u8], path: &Path) -> Result<Mesh, MeshError> {
                 1.0
             }
         });
+        let names: Vec<String> = element
+            .properties
+            .iter()
+            .map(|p| String::from_utf8_lossy(&p.name).into_owned())
+            .collect();
         let mut values = vec![0.0; element.properties.len()];
         for _ in 0..element.count {
+            let at = r.loc();
             for (k, p) in element.properties.iter().enumerate() {
-                let name = String::from_utf8_lossy(&p.name).into_owned();
+                let name = &names[k];
                 match p.list {
-                    None => values[k] = r.value(p.ty, &name)?,
+                    None => values[k] = r.value(p.ty, name, repaired[k])?,
                     Some(count_ty) => {
-                        let n = r.value(count_ty, &format!("the length of {name}"))?;
-                        if !(0.0..=1e6).contains(&n) {
+                        let n = r.value(count_ty, &format!("the length of {name}"), false)?;
+                        if !(0.0..=1e6).contains(&n) || n.fract() != 0.0 {
                             return Err(r.error(format!("a list of {n} items in {name}")));
                         }
                         let take = is_face && Some(k) == indices;
                         corners.clear();
                         for _ in 0..n as usize {
-                            let v = r.value(p.ty, &name)?;
+                            let v = r.value(p.ty, name, false)?;
                             if take {
                                 if v < 0.0 || v.fract() != 0.0 {
                                     return Err(r.error(format!(
                                         "vertex index {v} is not a whole number from 0"
                                     )));
                                 }
-                                corners.push(v as u32);
+                                corners.push(v.min(f64::from(u32::MAX)) as u32);
                             }
                         }
                         if take {
-                            if corners.len() < 3 {
-                                return Err(r.error(format!(
-                                    "a face needs at least 3 corners, found {}",
-                                    corners.len()
-                                )));
+                            if b.corner_count() + corners.len() >= u32::MAX as usize {
+                                return Err(r.error("more than 4 billion face corners".into()));
                             }
-                            fan(&corners, |c| {
-                                mesh.faces.push(Face {
-                                    positions: c,
-                                    normals: None,
-                                    material: None,
-                                });
-                            });
+                            b.polygon(corners.iter().map(|&c| (c, None)), None, at);
                         }
                     }
                 }
             }
             if is_vertex {
                 let get = |i: [Option<usize>; 3]| i.map(|k| values[k.unwrap_or(0)]);
-                mesh.positions.push(DVec3::from(get(xyz)));
+                b.mesh.positions.push(DVec3::from(get(xyz)));
                 if has_normals {
-                    mesh.normals.push(DVec3::from(get(nxyz)));
+                    b.mesh.normals.push(DVec3::from(get(nxyz)));
                 }
                 if has_colors {
-                    mesh.colors.push(DVec3::from(get(rgb)) / color_levels);
+                    b.mesh.colors.push(DVec3::from(get(rgb)) / color_levels);
                 }
             }
         }
     }
     // PLY normals are per vertex: a face's corners use their vertices' own.
-    if !mesh.normals.is_empty() {
-        for f in &mut mesh.faces {
-            f.normals = Some(f.positions);
-        }
+    if !b.mesh.normals.is_empty() {
+        b.corner_normals_are_positions();
     }
-    let np = mesh.positions.len();
-    if let Some(f) = mesh
-        .faces
-        .iter()
-        .find(|f| f.positions.iter().any(|&p| p as usize >= np))
-    {
-        return Err(r.error(format!(
-            "a face refers to vertex {}, but there are {np}",
-            f.positions.iter().max().copied().unwrap_or(0)
-        )));
-    }
-    Ok(mesh)
+    b.finish()
 }

@@ -185,6 +185,8 @@ pub struct MeshInfo {
     /// After its transforms.
     pub bounds: Bounds,
     pub load_time: std::time::Duration,
+    /// What its loader tolerated (printed as warnings, counted by `info`).
+    pub report: crate::mesh::Report,
 }
 
 #[derive(Clone, Debug, Default, PartialEq)]

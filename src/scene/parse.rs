@@ -173,17 +173,34 @@ pub fn parse_reader(reader: impl Read, path: &Path) -> Result<Scene, Error> {
 /// parsing a window is already faster than reading most disks.
 const MAX_PARSE_THREADS: usize = 8;
 
-fn parse_windows(mut reader: impl Read, path: &Path, windows: Windows) -> Result<Scene, Error> {
+/// No object of a scene, whitespace around it included, is this long: a
+/// window that grows past it without one being parsed holds something
+/// that is not a scene (a file without line ends of endless garbage).
+const MAX_OBJECT: usize = 16 << 20;
+
+fn parse_windows(reader: impl Read, path: &Path, windows: Windows) -> Result<Scene, Error> {
     let Windows {
         chunk,
         lookahead,
         threads,
     } = windows;
+    let mut reader = crate::input::Limited::max(reader);
     let name = path.display().to_string();
-    let io_error = |error| Error::ReadScene {
+    let io_error = |error: std::io::Error| match crate::input::InputError::from_io(error) {
+        crate::input::InputError::Io(error) => Error::ReadScene {
+            path: path.to_path_buf(),
+            error,
+        },
+        error => Error::Input {
+            path: path.to_path_buf(),
+            error,
+        },
+    };
+    let refused = |error| Error::Input {
         path: path.to_path_buf(),
         error,
     };
+    let mut checked = 0;
     let round = chunk * threads;
     let mut buf: Vec<u8> = Vec::with_capacity(round + lookahead);
     let mut base = 0;
@@ -200,6 +217,15 @@ fn parse_windows(mut reader: impl Read, path: &Path, windows: Windows) -> Result
                 Err(e) => return Err(io_error(e)),
             }
         }
+        // Scene files are text: a NUL byte is binary data (a wrong file,
+        // /dev/zero), refused where it is instead of parsed as tokens.
+        if let Some(i) = buf[checked.min(buf.len())..].iter().position(|&b| b == 0) {
+            return Err(refused(crate::input::InputError::Binary {
+                offset: (base + checked + i) as u64,
+                what: "scene file",
+            }));
+        }
+        checked = buf.len();
         let limit = if at_eof {
             buf.len()
         } else {
@@ -242,6 +268,29 @@ fn parse_windows(mut reader: impl Read, path: &Path, windows: Windows) -> Result
         let Some(pos) = resume else {
             return Ok(state.scene);
         };
+        if pos == 0 && !at_eof {
+            if state.declared.is_none() && buf.len() >= crate::input::SNIFF {
+                return Err(refused(crate::input::InputError::Refused {
+                    offset: base as u64,
+                    message: format!(
+                        "its first {} KiB hold no object count and `amb:` line: this is not a \
+                         scene file",
+                        crate::input::SNIFF / 1024
+                    ),
+                }));
+            }
+            if buf.len() >= MAX_OBJECT {
+                return Err(refused(crate::input::InputError::Refused {
+                    offset: base as u64,
+                    message: format!(
+                        "no object is complete in the {} MiB from here (line {}): a token or \
+                         a run of blanks this long is not a scene",
+                        MAX_OBJECT >> 20,
+                        state.line
+                    ),
+                }));
+            }
+        }
         // Where the current line began before `pos`, the characters of it
         // dropped with the consumed input still count in its columns.
         if state.line_start < base + pos {
@@ -255,6 +304,7 @@ fn parse_windows(mut reader: impl Read, path: &Path, windows: Windows) -> Result
         }
         buf.drain(..pos);
         base += pos;
+        checked -= pos;
         // Nothing consumed from a full window: one object is longer than
         // it, so read on until it fits.
         want = if pos == 0 {
@@ -382,6 +432,9 @@ struct State {
     /// Characters of the current line before the window, when it began in
     /// input already dropped.
     line_chars_before: usize,
+    /// The first mesh block that brought no triangles: the error if the
+    /// scene ends with nothing to render.
+    nothing_from_meshes: Option<Diagnostic>,
 }
 
 impl State {
@@ -515,6 +568,11 @@ impl<'a> Parser<'a> {
                 ),
                 Some("the file may be truncated; otherwise fix the count on the first line"),
             ));
+        }
+        if let Some(d) = &self.state.nothing_from_meshes {
+            if self.state.scene.primitive_count() == 0 {
+                return Err(ParseError(Box::new(d.clone())));
+            }
         }
         Ok(None)
     }
@@ -862,20 +920,33 @@ impl<'a> Parser<'a> {
                 Some("the path is relative to the scene file"),
             )
         })?;
-        if material.is_none() && mesh.missing_material() {
+        if material.is_none() && mesh.missing_material() && !mesh.faces.is_empty() {
             let what = if mesh.materials.is_empty() {
                 format!("{name} brings no materials, and this mesh block gives none")
             } else {
                 format!(
-                    "some faces of {name} have no material (no `usemtl` before them), and this \
-                     mesh block gives none"
+                    "some faces of {name} have no material (no `usemtl` before them, or one \
+                     no library defines), and this mesh block gives none"
                 )
             };
-            return Err(self.error_at(
+            let d = crate::mesh::DEFAULT_MATERIAL;
+            let diagnostic = self.diagnostic(
                 &file_tag,
-                what,
+                format!(
+                    "{what}: they take the default material (dif: {} {} {} spe: 0 0 0 shi: {})",
+                    d.kd.x, d.kd.y, d.kd.z, d.shininess
+                ),
                 Some("add `dif: r g b  spe: r g b  shi: s` after the file name"),
-            ));
+            );
+            self.warn(diagnostic);
+        }
+        if mesh.faces.is_empty() {
+            let diagnostic = self.diagnostic(
+                &name_tok,
+                format!("{name} holds no triangles (points, lines or nothing): it adds nothing"),
+                Some("check the file: glint renders surfaces (faces, triangles)"),
+            );
+            self.warn(diagnostic);
         }
         let state = &mut self.state;
         let triangles = mesh.triangles(
@@ -890,11 +961,23 @@ impl<'a> Parser<'a> {
             .fold(Bounds::EMPTY, Bounds::union);
         let before = self.state.scene.triangles.len();
         self.state.scene.triangles.extend(triangles);
+        let count = self.state.scene.triangles.len() - before;
+        if self.state.nothing_from_meshes.is_none() && count == 0 {
+            self.state.nothing_from_meshes = Some(self.diagnostic(
+                &name_tok,
+                format!(
+                    "nothing to render: the scene has no spheres or triangles, and {name} \
+                     brought none"
+                ),
+                Some("check the model file, or add objects to the scene"),
+            ));
+        }
         self.state.scene.meshes.push(MeshInfo {
             file: name,
-            triangles: self.state.scene.triangles.len() - before,
+            triangles: count,
             bounds,
             load_time: start.elapsed(),
+            report: mesh.report,
         });
         Ok(())
     }

@@ -1,0 +1,274 @@
+//! From the polygons a loader read to a `Mesh` of triangles: one place for
+//! what every format needs checked and repaired (repeated corners,
+//! faces without area, normals that are missing, partial, not finite or
+//! never used), so each loader only reads.
+
+use std::path::Path;
+
+use glam::DVec3;
+
+use super::polygon::{triangulate, Cut};
+use super::report::Tolerance;
+use super::{Face, Mesh, MeshError, SMOOTH};
+
+/// Where a polygon came from, for warnings.
+#[derive(Clone, Copy, Debug)]
+pub enum Loc {
+    Line(u64),
+    Byte(u64),
+    /// An index into `Builder::labels` (glTF's JSON paths).
+    Label(u32),
+}
+
+struct Poly {
+    start: u32,
+    len: u32,
+    material: Option<u32>,
+    at: Loc,
+}
+
+/// A mesh being read: vertices, normals, colours and materials as the
+/// file gives them, and polygons as corner lists.
+pub struct Builder<'a> {
+    pub mesh: Mesh,
+    pub path: &'a Path,
+    pub labels: Vec<String>,
+    corners: Vec<(u32, Option<u32>)>,
+    polys: Vec<Poly>,
+}
+
+impl<'a> Builder<'a> {
+    pub fn new(path: &'a Path) -> Builder<'a> {
+        Builder {
+            mesh: Mesh::default(),
+            path,
+            labels: Vec::new(),
+            corners: Vec::new(),
+            polys: Vec::new(),
+        }
+    }
+
+    pub fn warn(&mut self, kind: Tolerance, at: Option<String>, message: impl Into<String>) {
+        self.mesh.report.warn(kind, self.path, at, message);
+    }
+
+    fn show(&self, at: Loc) -> Option<String> {
+        match at {
+            Loc::Line(l) => Some(format!("line {l}")),
+            Loc::Byte(b) => Some(format!("byte {b}")),
+            Loc::Label(i) => self.labels.get(i as usize).cloned(),
+        }
+    }
+
+    /// One polygon: its corners as (position, optional normal) indices,
+    /// already checked against what the file defines.
+    pub fn polygon(
+        &mut self,
+        corners: impl IntoIterator<Item = (u32, Option<u32>)>,
+        material: Option<u32>,
+        at: Loc,
+    ) {
+        let start = self.corners.len();
+        self.corners.extend(corners);
+        let len = self.corners.len() - start;
+        self.polys.push(Poly {
+            start: start as u32,
+            len: len as u32,
+            material,
+            at,
+        });
+    }
+
+    /// Every corner's normal is its vertex's own (PLY and OFF give normals
+    /// per vertex).
+    pub fn corner_normals_are_positions(&mut self) {
+        for c in &mut self.corners {
+            c.1 = Some(c.0);
+        }
+    }
+
+    /// How many corners are held: loaders with untrusted counts stop
+    /// before `u32` offsets overflow.
+    pub fn corner_count(&self) -> usize {
+        self.corners.len()
+    }
+
+    /// Checks and cuts every polygon into the mesh's faces.
+    pub fn finish(mut self) -> Result<Mesh, MeshError> {
+        if self.corners.len() >= u32::MAX as usize {
+            return Err(MeshError {
+                path: self.path.to_path_buf(),
+                at: None,
+                message: "more than 4 billion polygon corners; split the model".into(),
+            });
+        }
+        let np = self.mesh.positions.len() as u32;
+        let nn = self.mesh.normals.len();
+        let nm = self.mesh.materials.len() as u32;
+        let bad_normal: Vec<bool> = self
+            .mesh
+            .normals
+            .iter()
+            .map(|n| !n.is_finite() || n.length_squared() == 0.0)
+            .collect();
+        let bad_position: Vec<bool> = self.mesh.positions.iter().map(|p| !p.is_finite()).collect();
+        let mut used_normals = false;
+        let mut ring: Vec<(u32, Option<u32>)> = Vec::new();
+        let mut points: Vec<DVec3> = Vec::new();
+        let mut tris: Vec<[usize; 3]> = Vec::new();
+        let polys = std::mem::take(&mut self.polys);
+        self.mesh.faces.reserve(polys.len());
+        for poly in &polys {
+            let corners = &self.corners[poly.start as usize..(poly.start + poly.len) as usize];
+            if let Some(&(p, _)) = corners.iter().find(|c| c.0 >= np) {
+                return Err(MeshError {
+                    path: self.path.to_path_buf(),
+                    at: self.show(poly.at),
+                    message: format!("a face refers to vertex {p}, but there are {np}"),
+                });
+            }
+            if let Some(m) = poly.material.filter(|&m| m >= nm) {
+                return Err(MeshError {
+                    path: self.path.to_path_buf(),
+                    at: self.show(poly.at),
+                    message: format!("a face refers to material {m}, but there are {nm}"),
+                });
+            }
+            if corners.iter().any(|c| bad_position[c.0 as usize]) {
+                let at = self.show(poly.at);
+                self.warn(
+                    Tolerance::BadPosition,
+                    at,
+                    "a face with a vertex that is not finite (NaN or infinite) dropped",
+                );
+                continue;
+            }
+            // Repeated corners (consecutive, or the last equal to the first) go.
+            ring.clear();
+            for &c in corners {
+                if ring.last().map(|l| l.0) != Some(c.0) {
+                    ring.push(c);
+                }
+            }
+            while ring.len() > 1 && ring.first().map(|f| f.0) == ring.last().map(|l| l.0) {
+                ring.pop();
+            }
+            if ring.len() < 3 {
+                let at = self.show(poly.at);
+                let message = if corners.len() < 3 {
+                    format!("a face with {} corner(s) dropped", corners.len())
+                } else {
+                    "a face whose corners repeat one vertex dropped".to_string()
+                };
+                self.warn(Tolerance::DegenerateFace, at, message);
+                continue;
+            }
+            let with = ring.iter().filter(|c| c.1.is_some()).count();
+            let normals_usable = if with == ring.len() {
+                used_normals = true;
+                true
+            } else {
+                if with > 0 {
+                    used_normals = true;
+                    let at = self.show(poly.at);
+                    self.warn(
+                        Tolerance::PartialNormals,
+                        at,
+                        format!(
+                            "a face gives normals for {with} of its {} corners; smooth normals \
+                             are used for all of them",
+                            ring.len()
+                        ),
+                    );
+                }
+                false
+            };
+            if let Some(k) = ring.iter().filter_map(|c| c.1).find(|&k| k as usize >= nn) {
+                return Err(MeshError {
+                    path: self.path.to_path_buf(),
+                    at: self.show(poly.at),
+                    message: format!("a face refers to normal {k}, but there are {nn}"),
+                });
+            }
+            points.clear();
+            points.extend(ring.iter().map(|c| self.mesh.positions[c.0 as usize]));
+            tris.clear();
+            let cut = triangulate(&points, &mut tris);
+            if cut == Cut::Tangled {
+                let at = self.show(poly.at);
+                self.warn(
+                    Tolerance::TangledPolygon,
+                    at,
+                    format!(
+                        "a concave polygon of {} corners that ear clipping cannot cut (it \
+                         crosses itself, or has over {} corners) is fanned from its first corner",
+                        ring.len(),
+                        super::polygon::MAX_EAR_CORNERS
+                    ),
+                );
+            }
+            let before = self.mesh.faces.len();
+            for t in &tris {
+                let [a, b, c] = t.map(|k| points[k]);
+                if (b - a).cross(c - a).length_squared() == 0.0 {
+                    continue;
+                }
+                let normals = normals_usable.then(|| {
+                    t.map(|k| {
+                        let n = ring[k].1.unwrap_or(SMOOTH);
+                        if n != SMOOTH && bad_normal[n as usize] {
+                            SMOOTH
+                        } else {
+                            n
+                        }
+                    })
+                });
+                self.mesh.faces.push(Face {
+                    positions: t.map(|k| ring[k].0),
+                    normals,
+                    material: poly.material,
+                });
+            }
+            if self.mesh.faces.len() == before {
+                let at = self.show(poly.at);
+                self.warn(
+                    Tolerance::DegenerateFace,
+                    at,
+                    "a face without area (its corners lie on one line) dropped",
+                );
+            } else if normals_usable {
+                self.note_bad_normals(&ring, &bad_normal, poly.at);
+            }
+        }
+        if nn > 0 && !used_normals {
+            self.warn(
+                Tolerance::UnusedNormals,
+                None,
+                format!(
+                    "the file gives {nn} normals but no face refers to them; smooth normals \
+                     are used"
+                ),
+            );
+        }
+        Ok(self.mesh)
+    }
+
+    fn note_bad_normals(&mut self, ring: &[(u32, Option<u32>)], bad: &[bool], at: Loc) {
+        for &(_, n) in ring {
+            let Some(n) = n.filter(|&n| bad[n as usize]) else {
+                continue;
+            };
+            let v = self.mesh.normals[n as usize];
+            let at = self.show(at);
+            self.warn(
+                Tolerance::BadNormal,
+                at,
+                format!(
+                    "a normal ({} {} {}) is not finite or has no length; the smooth normal is \
+                     used there",
+                    v.x, v.y, v.z
+                ),
+            );
+        }
+    }
+}
