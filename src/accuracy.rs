@@ -7,8 +7,8 @@ use std::time::Duration;
 
 use crate::compare::flip_mean;
 use crate::cpu::Precision;
+use crate::features::Features;
 use crate::framebuffer::Framebuffer;
-use crate::info::Features;
 use crate::methods::Methods;
 use crate::plot::Plot;
 use crate::scene::{Effects, Scene, Settings};

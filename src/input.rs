@@ -37,7 +37,7 @@ pub enum InputError {
     #[error(
         "the input goes on past --max-input ({}); if it is meant to be this long, raise \
          --max-input (bytes, or with K, M, G or T)",
-        crate::memory::human(*limit)
+        crate::units::human(*limit)
     )]
     TooLong { limit: u64 },
     #[error(

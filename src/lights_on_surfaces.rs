@@ -32,8 +32,7 @@
 
 use glam::DVec3;
 
-use crate::bvh::Bvh;
-use crate::layout::SPHERE_BIT;
+use crate::bvh::node::{GpuBvhNode, SPHERE_BIT};
 use crate::scene::{LightShape, Scene};
 
 /// A surface within this fraction of the coordinates' magnitude of a light
@@ -47,8 +46,9 @@ pub const ON_SURFACE: f64 = 1.0 / 1_048_576.0;
 pub const TANGENT_BAND: f64 = 1.0 / 4096.0;
 
 /// Per light, the primitive references (bit 31: sphere) whose surface passes
-/// through it; `scene` in the BVH's render space.
-pub fn find(scene: &Scene, bvh: &Bvh) -> Vec<Vec<u32>> {
+/// through it; `scene` in the render space of the BVH whose `nodes` and
+/// `refs` these are.
+pub fn find(scene: &Scene, nodes: &[GpuBvhNode], refs: &[u32]) -> Vec<Vec<u32>> {
     scene
         .lights
         .iter()
@@ -57,7 +57,7 @@ pub fn find(scene: &Scene, bvh: &Bvh) -> Vec<Vec<u32>> {
                 return Vec::new();
             }
             let p = light.position;
-            let mut found: Vec<u32> = candidates(bvh, p)
+            let mut found: Vec<u32> = candidates(nodes, refs, p)
                 .into_iter()
                 .filter(|&prim| through(scene, prim, p))
                 .collect();
@@ -69,16 +69,16 @@ pub fn find(scene: &Scene, bvh: &Bvh) -> Vec<Vec<u32>> {
 
 /// Primitives in leaves whose (outward-rounded) box holds `p`, widened by
 /// the tolerance.
-fn candidates(bvh: &Bvh, p: DVec3) -> Vec<u32> {
+fn candidates(nodes: &[GpuBvhNode], refs: &[u32], p: DVec3) -> Vec<u32> {
     let mut out = Vec::new();
-    if bvh.nodes.is_empty() {
+    if nodes.is_empty() {
         return out;
     }
     let slack = DVec3::splat(p.abs().max_element() * ON_SURFACE);
     let (lo, hi) = (p - slack, p + slack);
     let mut stack = vec![0usize];
     while let Some(i) = stack.pop() {
-        let n = &bvh.nodes[i];
+        let n = &nodes[i];
         let min = DVec3::from_array(n.min.map(f64::from));
         let max = DVec3::from_array(n.max.map(f64::from));
         if hi.cmplt(min).any() || lo.cmpgt(max).any() {
@@ -86,7 +86,7 @@ fn candidates(bvh: &Bvh, p: DVec3) -> Vec<u32> {
         }
         if n.count > 0 {
             let first = n.right_or_first as usize;
-            out.extend_from_slice(&bvh.prim_refs[first..first + n.count as usize]);
+            out.extend_from_slice(&refs[first..first + n.count as usize]);
         } else {
             stack.push(i + 1);
             stack.push(n.right_or_first as usize);

@@ -18,7 +18,7 @@
 use std::time::Duration;
 
 use crate::framebuffer::Framebuffer;
-use crate::render::RenderOutput;
+use crate::output::RenderOutput;
 use crate::scene::Effects;
 
 /// The fewest passes whose estimate a target trusts: with one pass per
@@ -425,7 +425,7 @@ mod tests {
             // A sum of uniforms: mean 0, standard deviation sigma.
             let mut s = 0.0;
             for _ in 0..12 {
-                state = crate::cpu::sample::hash_u32(state);
+                state = crate::hash::hash_u32(state);
                 s += f64::from(state) / f64::from(u32::MAX) - 0.5;
             }
             (0.5 + sigma * s) as f32

@@ -5,12 +5,12 @@ use std::time::{Duration, Instant};
 use crate::bvh::Bvh;
 use crate::camera::{Camera, DEFAULT_HEIGHT, DEFAULT_WIDTH};
 use crate::cpu::{self, CpuOptions, Precision};
-use crate::framebuffer::Framebuffer;
+use crate::features::Features;
 use crate::gpu::{Context, ContextOptions, DeviceSelector, GpuRenderOptions, GpuRenderer};
-use crate::info::Features;
 use crate::layout::GpuScene;
 use crate::memory::{self, MemoryNeed};
 use crate::methods::Methods;
+pub use crate::output::RenderOutput;
 use crate::probe::{PathRecord, ProbeImage};
 use crate::progressive::{
     Accumulator, Blocks, PassReport, Progressive, StopAt, Stopped, ADAPTIVE_FIRST_PASSES,
@@ -53,6 +53,10 @@ pub struct RenderOptions {
     /// GPU: compile every effect in and switch them by the settings alone
     /// (the generic shader), instead of specialising for the scene.
     pub generic: bool,
+    /// GPU tile edge and pass budget; `None`: the device's driver profile
+    /// (`gpu::driver`), which `gpu` then holds once a device is chosen.
+    pub tile: Option<u32>,
+    pub pass_budget: Option<u32>,
     pub gpu: GpuRenderOptions,
 }
 
@@ -69,6 +73,8 @@ impl Default for RenderOptions {
             methods: Methods::Robust,
             settings: Settings::default(),
             generic: false,
+            tile: None,
+            pass_budget: None,
             gpu: GpuRenderOptions::default(),
         }
     }
@@ -88,24 +94,6 @@ impl RenderOptions {
             Features::of(scene, &self.effects(scene))
         }
     }
-}
-
-pub struct RenderOutput {
-    pub framebuffer: Framebuffer,
-    pub timings: Timings,
-    /// What rendered it, e.g. "GPU: llvmpipe (LLVM 15.0.6, 256 bits)" or "CPU reference (f32)".
-    pub renderer: String,
-    /// Something the user should know, e.g. why `auto` fell back to the CPU.
-    pub note: Option<String>,
-    /// Vulkan validation warnings and errors seen (GPU renders with validation on).
-    pub validation_messages: u32,
-    /// Host memory the render needed beyond the scene and its BVH (checked
-    /// against what was available before it started).
-    pub memory: MemoryNeed,
-    /// The tree it traversed.
-    pub bvh: crate::bvh::BvhStats,
-    /// Samples it took, over all pixels it rendered.
-    pub samples: u64,
 }
 
 /// Which pixels a render computes; the others are left 0.
@@ -212,6 +200,7 @@ impl Renderer {
             note = Some("--precision f64 exists on the CPU reference only; rendered there".into());
         }
         let mut engine = Engine::Cpu(options.precision);
+        let mut options = options.clone();
         if want_gpu {
             let context_options = ContextOptions {
                 device: options.device.clone(),
@@ -220,11 +209,11 @@ impl Renderer {
             let start = Instant::now();
             match Context::new(&context_options) {
                 // Lavapipe renders the same image as the CPU reference, only
-                // slower on the same cores (README, "Choosing a device").
+                // slower on the same cores (docs/cli.md, "Choosing a device").
                 Ok(ctx)
                     if options.backend == Backend::Auto
                         && options.device.is_none()
-                        && ctx.info().device_type == "CPU" =>
+                        && ctx.info().profile.prefer_cpu_reference =>
                 {
                     note = Some(format!(
                         "the only Vulkan device is a software one ({}), slower than the CPU \
@@ -235,6 +224,10 @@ impl Renderer {
                 }
                 Ok(ctx) => {
                     timings.add("device", start.elapsed());
+                    let profile = &ctx.info().profile;
+                    options.gpu.tile_size = options.tile.unwrap_or(profile.tile_size);
+                    options.gpu.pass_budget = options.pass_budget.unwrap_or(profile.pass_budget);
+                    options.gpu.one_pass_first = profile.one_pass_first;
                     let renderer = Box::new(GpuRenderer::new(&ctx)?);
                     engine = Engine::Gpu { ctx, renderer };
                 }
@@ -249,7 +242,7 @@ impl Renderer {
             }
         }
         Ok(Renderer {
-            options: options.clone(),
+            options,
             engine,
             setup_timings: std::sync::Mutex::new(Some(timings)),
             note,
@@ -540,8 +533,7 @@ impl Renderer {
         let mut need = MemoryNeed::image(p.camera.width, p.camera.height);
         let framebuffer = match (&self.engine, packed) {
             (Engine::Gpu { renderer, ctx }, Packed::Gpu(packed)) => {
-                let device_type = ctx.info().device_type.as_str();
-                let host_device = matches!(device_type, "CPU" | "integrated GPU");
+                let host_device = ctx.info().profile.host_memory;
                 let texels = crate::gpu::tile_texels(
                     self.options.gpu.tile_size,
                     p.camera.width,

@@ -8,8 +8,8 @@ mod common;
 use common::*;
 use glint::compare::compare_framebuffers;
 use glint::cpu::Precision;
+use glint::features::Features;
 use glint::framebuffer::Framebuffer;
-use glint::info::Features;
 use glint::scene::{Effects, LightShape, Scene};
 
 fn effect_scene(name: &str) -> Scene {

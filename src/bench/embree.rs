@@ -13,7 +13,7 @@ use std::path::{Path, PathBuf};
 use std::process::Command;
 use std::time::Duration;
 
-use super::{base_options, repeat, scene_name, Stat};
+use super::common::{base_options, repeat, scene_name, Stat};
 use crate::cpu::Precision;
 use crate::gpu::DeviceSelector;
 use crate::render::{Backend, RenderOptions, Renderer};

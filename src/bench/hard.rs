@@ -7,12 +7,12 @@
 use std::fmt::Write as _;
 use std::time::Instant;
 
-use super::{Stat, CLASSIC_DIR};
+use super::common::{Stat, CLASSIC_DIR};
 use crate::bvh::Bvh;
 use crate::camera::Camera;
 use crate::cpu::{self, CpuOptions};
+use crate::features::Features;
 use crate::gpu::{DeviceSelector, GpuRenderOptions};
-use crate::info::Features;
 use crate::layout::GpuScene;
 use crate::methods::Methods;
 use crate::render::{Backend, RenderOptions, Renderer};

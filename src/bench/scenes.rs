@@ -7,7 +7,7 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use super::{base_options, repeat, scene_name, Stat};
+use super::common::{base_options, repeat, scene_name, Stat};
 use crate::bvh::Bvh;
 use crate::cpu::Precision;
 use crate::gpu::DeviceSelector;

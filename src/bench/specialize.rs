@@ -8,11 +8,11 @@ use std::fmt::Write as _;
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
-use super::{default_scenes, scene_files, Stat};
+use super::common::{default_scenes, scene_files, Stat};
 use crate::bvh::Bvh;
 use crate::camera::Camera;
+use crate::features::Features;
 use crate::gpu::{DeviceSelector, GpuError, GpuRenderOptions, Kernel};
-use crate::info::Features;
 use crate::layout::GpuScene;
 use crate::methods::Methods;
 use crate::render::{Backend, RenderOptions, Renderer};
@@ -74,7 +74,7 @@ pub fn run_specialize(
     for path in &options.scenes {
         let scene = read_scene(path)?.in_view_space().into_owned();
         let camera = Camera::with_fov(options.width, options.height, scene.fov());
-        let name = super::scene_name(path);
+        let name = super::common::scene_name(path);
         let effects = Effects::resolve(&scene.settings);
         let features = Features::of(&scene, &effects);
         let packed = GpuScene::pack(&scene, &Bvh::for_render(&scene, &effects));

@@ -70,7 +70,7 @@ enum Command {
 }
 
 /// Overrides of a scene's render settings (its `reflect:`, `spp:`, ...
-/// lines); see the README's "Scene format extensions".
+/// lines); see docs/scene-format.md.
 #[derive(Args, Clone, Copy, Debug, Default)]
 pub struct EffectArgs {
     /// Reflection depth in bounces; 0 turns reflection off.

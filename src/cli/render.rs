@@ -99,17 +99,17 @@ pub struct RenderArgs {
     /// Enable the Vulkan validation layer (when installed) and report its messages.
     #[arg(long)]
     validation: bool,
-    /// Tile edge in pixels for the GPU (work per submit).
-    /// At most 2048: a 2048x2048 tile's output buffer is 64 MiB, half of
-    /// lavapipe's 128 MiB per-buffer limit.
-    #[arg(long, default_value_t = glint::gpu::GpuRenderOptions::default().tile_size, value_parser = clap::value_parser!(u32).range(8..=2048))]
-    tile: u32,
+    /// Tile edge in pixels for the GPU (work per submit), 8-2048.
+    /// Default: the device's driver profile (`glint devices`): 512 on
+    /// lavapipe and unknown devices, up to 2048 on GPUs.
+    #[arg(long, value_parser = clap::value_parser!(u32).range(8..=2048))]
+    tile: Option<u32>,
     /// GPU: loop iterations one shader invocation may run per pass (a pass
     /// is one dispatch per tile); a pixel needing more continues in further
     /// passes, with the same image. Bounds every dispatch's work whatever
-    /// the scene asks for.
-    #[arg(long, value_name = "N", default_value_t = glint::gpu::DEFAULT_PASS_BUDGET, value_parser = clap::value_parser!(u32).range(1..))]
-    pass_budget: u32,
+    /// the scene asks for. Default: the device's driver profile (2048).
+    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..))]
+    pass_budget: Option<u32>,
     /// GPU: seconds to wait for one pass before failing (exit 1).
     #[arg(long, value_name = "SECONDS", default_value_t = glint::gpu::GpuRenderOptions::default().pass_timeout.as_secs_f64(), value_parser = parse_seconds)]
     pass_timeout: f64,
@@ -348,9 +348,9 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         },
         settings: args.effects.settings(),
         generic: args.generic_shader,
+        tile: args.tile,
+        pass_budget: args.pass_budget,
         gpu: glint::gpu::GpuRenderOptions {
-            tile_size: args.tile,
-            pass_budget: args.pass_budget,
             pass_timeout: Duration::from_secs_f64(args.pass_timeout),
             uniform_lists: !args.storage_lists,
             ..Default::default()

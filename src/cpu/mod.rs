@@ -2,12 +2,14 @@
 //! function names), parallel over rows with rayon, in f32 (the shader's twin)
 //! or f64 (ground truth).
 
+mod options;
 pub mod packet;
 mod real;
 pub mod sample;
+mod simd;
 pub mod trace;
-pub mod wide;
 
+pub use options::{CpuOptions, Precision};
 pub use real::Real;
 
 use std::time::Duration;
@@ -17,49 +19,12 @@ use rayon::prelude::*;
 use crate::bvh::Bvh;
 use crate::camera::Camera;
 use crate::framebuffer::Framebuffer;
-use crate::methods::Methods;
 use crate::probe::{PathLight, PathRecord, PathSurface, ProbeImage, ProbePixel};
-use crate::scene::{Effects, Scene};
+use crate::scene::Scene;
 use trace::{
     centre_key, light_term, pixel_color, pixel_ray, surface_point, trace_primary, CpuGeometry,
     CpuScene,
 };
-
-/// Arithmetic precision of the CPU reference.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-pub enum Precision {
-    /// Follows the shader's f32 arithmetic, operation for operation.
-    #[default]
-    F32,
-    /// Ground truth for accuracy measurements and golden images.
-    F64,
-}
-
-/// What the CPU reference renders with, besides the scene and camera.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct CpuOptions {
-    pub background: [f32; 3],
-    pub precision: Precision,
-    pub methods: Methods,
-    pub effects: Effects,
-    /// Whether f32 renders may trace their pixels' rays in packets
-    /// (`packet::applies`); off, every ray goes alone. The image is the
-    /// same but where a ray meets two surfaces at (nearly) one t, which
-    /// of them is kept (`cpu::packet`).
-    pub packets: bool,
-}
-
-impl Default for CpuOptions {
-    fn default() -> Self {
-        CpuOptions {
-            background: [1.0; 3],
-            precision: Precision::F32,
-            methods: Methods::Robust,
-            effects: Effects::default(),
-            packets: true,
-        }
-    }
-}
 
 /// Renders the whole image on the CPU. `progress(rows_done, rows_total)` is
 /// called from worker threads as rows finish. The BVH must be built for the
@@ -346,7 +311,7 @@ mod tests {
     /// have run in the wall time it took; and the rays it counted.
     #[test]
     fn a_render_reports_its_threads_cpu_time() {
-        let scene = super::wide::tests::scene(300);
+        let scene = crate::bvh::wide::tests::scene(300);
         let bvh = crate::bvh::Bvh::build(&scene);
         let camera = crate::camera::Camera::new(64, 48);
         for packets in [true, false] {

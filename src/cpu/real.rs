@@ -6,8 +6,19 @@ use std::ops::{Add, Div, Index, Mul, Neg, Sub};
 
 use glam::{DVec3, Vec3};
 
-use super::trace::Ray;
-use super::wide::{LeafBlock, Node4};
+use crate::bvh::wide::{LeafBlock, Node4};
+
+/// A ray as both backends trace it: origin, direction and its inverse,
+/// the watertight test's axis permutation `k` and shear, and its time.
+#[derive(Clone, Copy, Debug)]
+pub struct Ray<R: Real> {
+    pub origin: R::V3,
+    pub dir: R::V3,
+    pub inv_dir: R::V3,
+    pub k: [usize; 3],
+    pub shear: R::V3,
+    pub time: R,
+}
 
 pub trait Real:
     Copy
@@ -256,12 +267,12 @@ impl_real!(
     },
     #[inline(always)]
     fn hit_boxes(ray: &Ray<f32>, node: &Node4, t_max: f32) -> (u32, [f32; 4]) {
-        super::wide::hit_boxes_f32(ray.origin, ray.inv_dir, node, t_max, Self::BOX_T_SCALE)
+        super::simd::hit_boxes_f32(ray.origin, ray.inv_dir, node, t_max, Self::BOX_T_SCALE)
     },
     const SIMD_LEAVES: bool = true;,
     #[inline(always)]
     fn hit_block(ray: &Ray<f32>, block: &LeafBlock, t_max: f32) -> Option<(usize, f32, f32, f32)> {
-        super::wide::hit_block_f32(ray, block, t_max)
+        super::simd::hit_block_f32(ray.origin, ray.k, ray.shear, block, t_max)
     }
 );
 impl_real!(
@@ -274,7 +285,7 @@ impl_real!(
     },
     #[inline(always)]
     fn hit_boxes(ray: &Ray<f64>, node: &Node4, t_max: f64) -> (u32, [f64; 4]) {
-        super::wide::hit_boxes_f64(ray.origin, ray.inv_dir, node, t_max, Self::BOX_T_SCALE)
+        super::simd::hit_boxes_f64(ray.origin, ray.inv_dir, node, t_max, Self::BOX_T_SCALE)
     }
 );
 
@@ -354,7 +365,7 @@ mod tests {
         ];
         let mut state = 0x1234_5678u32;
         let mut next = move || {
-            state = crate::cpu::sample::hash_u32(state);
+            state = crate::hash::hash_u32(state);
             state
         };
         let mut cases = Vec::new();

@@ -10,15 +10,7 @@ pub const STREAM_TIME: u32 = 1;
 pub const STREAM_LIGHT: u32 = 2;
 pub const ROTATION: u32 = u32::MAX;
 
-pub fn hash_u32(x: u32) -> u32 {
-    let mut h = x;
-    h ^= h >> 16;
-    h = h.wrapping_mul(0x7feb_352d);
-    h ^= h >> 15;
-    h = h.wrapping_mul(0x846c_a68b);
-    h ^= h >> 16;
-    h
-}
+pub use crate::hash::hash_u32;
 
 pub fn rng(seed: u32, pixel: u32, sample: u32, stream: u32, index: u32) -> u32 {
     let mut h = hash_u32(seed ^ 0x9e37_79b9);

@@ -13,7 +13,9 @@ use ash::vk;
 use gpu_allocator::vulkan::{Allocator, AllocatorCreateDesc};
 
 use super::debug::DebugMessenger;
+use super::driver::DriverProfile;
 use super::error::{GpuError, VkResultExt};
+pub use super::limits::DeviceLimits;
 
 const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
 
@@ -60,6 +62,8 @@ pub struct DeviceInfo {
     pub device_type: String,
     pub driver: String,
     pub api_version: String,
+    /// How glint renders on it (`gpu::driver`).
+    pub profile: DriverProfile,
     has_compute: bool,
     rank: u8,
 }
@@ -78,40 +82,6 @@ pub(crate) struct Shared {
     pub addresses: Option<ash::khr::buffer_device_address::Device>,
     pub validation: bool,
     poisoned: AtomicBool,
-}
-
-/// The device limits a render must stay within.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct DeviceLimits {
-    /// `maxStorageBufferRange`: the largest storage binding, in bytes.
-    pub max_storage_range: u64,
-    /// `maxUniformBufferRange`.
-    pub max_uniform_range: u64,
-    /// `maxMemoryAllocationSize` (Vulkan 1.1; the spec's minimum, 1 GiB,
-    /// where the device does not say).
-    pub max_allocation: u64,
-    /// `maxComputeWorkGroupCount`.
-    pub max_group_count: [u32; 3],
-    /// `maxPerStageDescriptorStorageBuffers`.
-    pub max_storage_buffers: u32,
-    /// `maxPerStageDescriptorUniformBuffers`.
-    pub max_uniform_buffers: u32,
-    /// The device is a CPU (`VK_PHYSICAL_DEVICE_TYPE_CPU`: lavapipe,
-    /// SwiftShader), which reads uniform buffers faster than storage ones.
-    pub cpu: bool,
-    /// `minStorageBufferOffsetAlignment`: where a split list's chunks may start.
-    pub storage_offset_alignment: u64,
-    /// `timestampPeriod`: nanoseconds a timestamp tick lasts.
-    pub timestamp_period: f32,
-    /// The compute queue's `timestampValidBits`; 0: no timestamps, so GPU
-    /// time is the host's clock around each pass.
-    pub timestamp_bits: u32,
-    /// Buffer device addresses and 64-bit integers are enabled
-    /// (`VK_KHR_buffer_device_address`, `shaderInt64`): only where loads
-    /// through them are the device's fastest divergent loads
-    /// (`address_loads_pay`), so that the shader reads its hot lists that
-    /// way (`Lists::Address`).
-    pub device_addresses: bool,
 }
 
 fn limits_of(inst: &ash::Instance, pd: vk::PhysicalDevice, queue_family: u32) -> DeviceLimits {
@@ -142,24 +112,6 @@ fn limits_of(inst: &ash::Instance, pd: vk::PhysicalDevice, queue_family: u32) ->
             .map_or(0, |f| f.timestamp_valid_bits),
         device_addresses: false,
     }
-}
-
-/// Whether the shader should read its hot lists through device addresses
-/// on this device: llvmpipe from Mesa 25, which loads the eight lanes of a
-/// device-address read with one gather instruction. Measured on lavapipe
-/// with a chain of dependent 14-word loads (the shape of a node visit):
-/// Mesa 25.0 took 41-55 ms through device addresses against 70-99 ms from a
-/// uniform buffer and 160-190 ms from a storage buffer; Mesa 22.3 took
-/// 570 ms through device addresses (a call per lane) against 74-84 and
-/// 190-250. GPUs are unmeasured and keep their storage lists.
-pub fn address_loads_pay(info: &DeviceInfo) -> bool {
-    let Some(rest) = info.driver.strip_prefix("llvmpipe Mesa ") else {
-        return false;
-    };
-    rest.split('.')
-        .next()
-        .and_then(|major| major.parse::<u32>().ok())
-        .is_some_and(|major| major >= 25)
 }
 
 impl Shared {
@@ -325,6 +277,11 @@ fn describe(instance: &Instance, pd: vk::PhysicalDevice, index: usize) -> Device
         _ => ("other", 0),
     };
     let v = props.api_version;
+    let compute = families
+        .iter()
+        .position(|f| f.queue_flags.contains(vk::QueueFlags::COMPUTE))
+        .unwrap_or(0) as u32;
+    let profile = DriverProfile::of(device_type, &driver, &limits_of(inst, pd, compute));
     DeviceInfo {
         index,
         name: props
@@ -333,6 +290,7 @@ fn describe(instance: &Instance, pd: vk::PhysicalDevice, index: usize) -> Device
             .unwrap_or_else(|_| "(unnamed)".into()),
         device_type: device_type.to_string(),
         driver,
+        profile,
         api_version: format!(
             "{}.{}.{}",
             vk::api_version_major(v),
@@ -442,10 +400,10 @@ impl Context {
         {
             ext_names.push(ash::khr::portability_subset::NAME.as_ptr());
         }
-        // Device addresses, only where they pay (`address_loads_pay`): the
+        // Device addresses, only where they pay (`DriverProfile::address_lists`): the
         // extension, its feature and 64-bit integers (the shader converts a
         // 64-bit address to a pointer).
-        let addresses = address_loads_pay(&infos[index])
+        let addresses = infos[index].profile.address_lists
             && instance.version >= vk::API_VERSION_1_1
             && dev_exts
                 .iter()
@@ -567,31 +525,10 @@ mod tests {
             device_type: String::new(),
             driver: String::new(),
             api_version: String::new(),
+            profile: DriverProfile::unknown(),
             has_compute: true,
             rank,
         }
-    }
-
-    #[test]
-    fn device_addresses_only_on_llvmpipe_from_mesa_25() {
-        let with = |driver: &str| DeviceInfo {
-            driver: driver.into(),
-            ..dev(0, 1, "llvmpipe")
-        };
-        assert!(address_loads_pay(&with(
-            "llvmpipe Mesa 25.0.7-2~bpo12+1 (LLVM 15.0.6)"
-        )));
-        assert!(address_loads_pay(&with(
-            "llvmpipe Mesa 26.1.0 (LLVM 19.1.7)"
-        )));
-        assert!(!address_loads_pay(&with(
-            "llvmpipe Mesa 22.3.6 (LLVM 15.0.6)"
-        )));
-        assert!(!address_loads_pay(&with(
-            "llvmpipe Mesa 24.2.8-1 (LLVM 19.1.4)"
-        )));
-        assert!(!address_loads_pay(&with("NVIDIA 560.35.03")));
-        assert!(!address_loads_pay(&with("driver version 0x1")));
     }
 
     #[test]

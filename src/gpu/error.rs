@@ -74,7 +74,7 @@ pub enum GpuError {
     )]
     DeviceLost { x: u32, y: u32 },
     #[error(transparent)]
-    Shader(#[from] super::shader::ShaderError),
+    Shader(#[from] ShaderError),
 }
 
 pub(crate) trait VkResultExt<T> {
@@ -86,4 +86,12 @@ impl<T> VkResultExt<T> for Result<T, vk::Result> {
     fn call(self, name: &'static str) -> Result<T, GpuError> {
         self.map_err(|result| GpuError::Vk { call: name, result })
     }
+}
+
+/// The shader failed to compile: a bug in glint, not in the user's input.
+#[derive(Debug, Clone, thiserror::Error)]
+#[error("building the trace shader ({what}) failed: {message}; this is a bug in glint, please report it")]
+pub struct ShaderError {
+    pub what: String,
+    pub message: String,
 }

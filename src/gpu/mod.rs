@@ -7,19 +7,24 @@
 //! Every wrapper holds an `Arc` of the context's shared state, so Vulkan
 //! objects are destroyed after the work using them, and the device last.
 
+mod bindings;
 mod buffer;
 mod context;
 mod debug;
+pub mod driver;
 mod error;
+mod limits;
 mod pipeline;
 mod render;
+mod rewrite;
 pub mod shader;
 
+pub use bindings::BINDINGS;
 pub use context::{
     list_devices, Context, ContextOptions, DeviceInfo, DeviceLimits, DeviceSelector,
 };
 pub use error::GpuError;
-pub use pipeline::{Kernel, BINDINGS};
+pub use pipeline::Kernel;
 pub use render::{
     tile_texels, GpuRenderOptions, GpuRenderer, DEFAULT_PASS_BUDGET, RESUMABLE_REDOS,
 };

@@ -387,19 +387,7 @@ fn grazing(name: &str, light_height: f64, checks: &[Metric]) -> Case {
     // coordinate of a hit point is exact (an axis-aligned ground at y = -1
     // would be kind to any method).
     let turn = glam::DQuat::from_axis_angle(DVec3::new(0.3, 1.0, 0.2).normalize(), 0.012);
-    let mut turned = scene(0.1, lights, spheres, tris);
-    for t in &mut turned.triangles {
-        for v in &mut t.vertices {
-            v.position = turn * v.position;
-            v.normal = turn * v.normal;
-        }
-    }
-    for s in &mut turned.spheres {
-        s.center = turn * s.center;
-    }
-    for l in &mut turned.lights {
-        l.position = turn * l.position;
-    }
+    let turned = scene(0.1, lights, spheres, tris).turned(turn);
     let what = format!(
         "huge ground and wall triangles, a plane 0.57 deg from edge-on, a light {:.2} deg above \
          the ground, all turned 0.7 deg off the axes",
@@ -731,7 +719,7 @@ pub fn all() -> Vec<Case> {
         // A light 0.1 deg above the ground amplifies the f32 error of a point
         // on a 2e5-wide triangle some 500-fold along the ground: the shadow
         // edge near the sphere's contact is uncertain by pixels. Reported,
-        // not asserted (see the README).
+        // not asserted (see docs/robustness.md).
         grazing("grazing_light_0.1deg", 0.1, &[Nan]),
         far_spheres(),
     ];

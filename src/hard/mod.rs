@@ -16,8 +16,8 @@ use std::time::{Duration, Instant};
 use crate::bvh::Bvh;
 use crate::camera::Camera;
 use crate::cpu::{self, CpuOptions, Precision};
+use crate::features::Features;
 use crate::gpu::{GpuRenderOptions, GpuRenderer};
-use crate::info::Features;
 use crate::layout::GpuScene;
 use crate::methods::Methods;
 use crate::probe::ProbeImage;
@@ -84,22 +84,23 @@ pub fn cases() -> Vec<Case> {
 }
 
 fn representable_in_f32(scene: &Scene) -> Scene {
-    let r = |v: glam::DVec3| v.as_vec3().as_dvec3();
-    let mut s = scene.clone();
-    s.ambient = r(s.ambient);
-    for sphere in &mut s.spheres {
-        sphere.center = r(sphere.center);
-        sphere.radius = f64::from(sphere.radius as f32);
-    }
-    for t in &mut s.triangles {
-        for v in &mut t.vertices {
-            v.position = r(v.position);
-            v.normal = r(v.normal);
+    use glam::DVec3;
+    struct F32;
+    impl crate::scene::SpaceMap for F32 {
+        fn point(&self, p: DVec3, _: DVec3) -> DVec3 {
+            p.as_vec3().as_dvec3()
+        }
+        fn normal(&self, n: DVec3) -> DVec3 {
+            n.as_vec3().as_dvec3()
+        }
+        fn length(&self, r: f64) -> f64 {
+            f64::from(r as f32)
         }
     }
+    let mut s = scene.mapped(&F32);
+    s.ambient = s.ambient.as_vec3().as_dvec3();
     for l in &mut s.lights {
-        l.position = r(l.position);
-        l.color = r(l.color);
+        l.color = l.color.as_vec3().as_dvec3();
     }
     s
 }

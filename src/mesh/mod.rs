@@ -28,7 +28,7 @@ use std::path::{Path, PathBuf};
 
 use glam::DVec3;
 
-use crate::scene::Material;
+use crate::scene::model::Material;
 pub use report::{Report, Tolerance, Warning};
 pub use write::{write_obj, ObjWritten};
 
@@ -266,8 +266,8 @@ impl Mesh {
         place: impl Fn(DVec3) -> DVec3,
         turn: impl Fn(DVec3) -> DVec3,
         mut material_id: impl FnMut(Material) -> u32,
-    ) -> Vec<crate::scene::Triangle> {
-        use crate::scene::{Triangle, Vertex};
+    ) -> Vec<crate::scene::model::Triangle> {
+        use crate::scene::model::{Triangle, Vertex};
         let smooth = if self.needs_smooth_normals() {
             self.smooth_normals()
         } else {
@@ -328,11 +328,11 @@ impl Mesh {
 
     /// The bounds of the vertices faces use (a file's unused or
     /// non-finite vertices do not count).
-    pub fn bounds(&self) -> crate::scene::Bounds {
+    pub fn bounds(&self) -> crate::scene::model::Bounds {
         self.faces
             .iter()
             .flat_map(|f| f.positions)
-            .fold(crate::scene::Bounds::EMPTY, |b, p| {
+            .fold(crate::scene::model::Bounds::EMPTY, |b, p| {
                 b.grow(self.positions[p as usize])
             })
     }

@@ -15,7 +15,7 @@ use glam::DVec3;
 use super::report::{Report, Tolerance};
 use super::text::{show, Text};
 use super::MeshError;
-use crate::scene::Material;
+use crate::scene::model::Material;
 
 pub fn read(
     src: &[u8],

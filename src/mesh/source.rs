@@ -233,7 +233,7 @@ fn read_binary_stl(
             Some("byte 80".into()),
             format!(
                 "the header claims {count} triangles ({want} bytes), more than --max-input ({})",
-                crate::memory::human(input::max_input())
+                crate::units::human(input::max_input())
             ),
         ));
     }
@@ -282,7 +282,7 @@ fn read_glb(mut r: impl Read, mut head: Vec<u8>, path: &Path) -> Result<Vec<u8>,
             Some("byte 8".into()),
             format!(
                 "the header claims {length} bytes, more than --max-input ({})",
-                crate::memory::human(input::max_input())
+                crate::units::human(input::max_input())
             ),
         ));
     }

@@ -6,7 +6,7 @@ use std::fmt::Write as _;
 
 use glam::DVec3;
 
-use crate::scene::Scene;
+use crate::scene::model::Scene;
 
 /// What `write_obj` wrote, and what OBJ could not hold.
 #[derive(Clone, Debug, Default, PartialEq)]

@@ -5,7 +5,7 @@ use std::fmt::Write as _;
 
 use glam::DVec3;
 
-use super::{LightShape, Material, Scene};
+use super::model::{LightShape, Material, Scene};
 
 /// Shortest text that parses back to `x`: plain decimals for ordinary
 /// magnitudes, exponent form (`1e-16`) otherwise, both accepted by the parser.

@@ -2,6 +2,8 @@
 //! test binary, rendering on each backend, and failure artefacts.
 #![allow(dead_code)] // each test binary uses a different subset
 
+pub mod cli;
+
 use std::path::{Path, PathBuf};
 use std::sync::{Mutex, OnceLock};
 
@@ -9,9 +11,9 @@ use glint::bvh::Bvh;
 use glint::camera::Camera;
 use glint::compare::Comparison;
 use glint::cpu::{CpuOptions, Precision};
+use glint::features::Features;
 use glint::framebuffer::{write_image, Framebuffer};
 use glint::gpu::{Context, ContextOptions, GpuRenderOptions, GpuRenderer};
-use glint::info::Features;
 use glint::layout::GpuScene;
 use glint::scene::{parse_scene, Effects, Scene};
 

@@ -10,12 +10,15 @@
 //! independently), so it contains both the f64 geometry and its f32
 //! rounding; node boxes are unions of those, exact in f32.
 
+pub mod node;
+pub mod wide;
+
 use glam::{DVec3, Vec3A};
 use rayon::prelude::*;
 
-use crate::info::Features;
-use crate::layout::{GpuBvhNode, BVH_MAX_DEPTH, SPHERE_BIT};
+use crate::features::Features;
 use crate::scene::{Bounds, Effects, Scene};
+pub use node::{GpuBvhNode, BVH_MAX_DEPTH, SPHERE_BIT};
 
 /// Primitives a leaf holds: any set this small is a leaf, larger ones
 /// split. The CPU reference tests up to four triangles in one SIMD test, so
@@ -246,7 +249,7 @@ impl Bvh {
             bvh.depth = depth;
         }
         bvh.prim_refs = prims.iter().map(|p| p.reference).collect();
-        bvh.surfaces_at_lights = crate::lights_on_surfaces::find(scene, &bvh);
+        bvh.surfaces_at_lights = crate::lights_on_surfaces::find(scene, &bvh.nodes, &bvh.prim_refs);
         bvh
     }
 }
@@ -534,7 +537,7 @@ mod tests {
         use crate::scene::{Material, Triangle, Vertex};
         let mut state = 7u32;
         let mut next = || {
-            state = crate::cpu::sample::hash_u32(state);
+            state = crate::hash::hash_u32(state);
             f64::from(state) / f64::from(u32::MAX) * 20.0 - 10.0
         };
         let material = Material {

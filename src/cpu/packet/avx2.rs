@@ -1,0 +1,231 @@
+//! The packet's box tests eight rays a register (AVX2), and a leaf
+//! block's triangles against an octet of rays (`hit_block_octet`), each
+//! lane the single ray's arithmetic to the bit.
+
+use super::lanes::*;
+use crate::bvh::wide;
+use crate::cpu::trace::Hit;
+use crate::cpu::Real;
+
+/// One child box (`lane` of `node`) against a register of rays (origins
+/// `o`, inverse directions `inv`, limits `bt`), as `(t_near, t_far)`:
+/// `children_sse`'s arithmetic, in the intrinsics of the register's width
+/// (broadcast, sub, mul, min, max), for the AVX2 and AVX-512 tests alike.
+/// A macro, not a function over the intrinsics, so that each expands inside
+/// its caller's `target_feature` and inlines as written.
+#[cfg(target_arch = "x86_64")]
+macro_rules! box_entry_exit {
+    ($node:expr, $lane:expr, $o:expr, $inv:expr, $bt:expr, $zero:expr, $scale:expr;
+     $set1:ident, $sub:ident, $mul:ident, $min:ident, $max:ident) => {{
+        let slab = |axis: usize| {
+            let t0 = $mul($sub($set1($node.lo[axis][$lane]), $o[axis]), $inv[axis]);
+            let t1 = $mul($sub($set1($node.hi[axis][$lane]), $o[axis]), $inv[axis]);
+            ($min(t0, t1), $max(t0, t1))
+        };
+        let (nx, fx) = slab(0);
+        let (ny, fy) = slab(1);
+        let (nz, fz) = slab(2);
+        let t_near = $max($max(nx, ny), $max(nz, $zero));
+        let t_far = $mul($min($min(fx, fy), $min(fz, $bt)), $scale);
+        (t_near, t_far)
+    }};
+}
+#[cfg(target_arch = "x86_64")]
+pub(super) use box_entry_exit;
+
+/// `children_sse` with AVX2, eight rays at a time: the same operations
+/// lane for lane (`_mm256_min_ps` and `_mm256_max_ps` take their operands
+/// in `Vec4::min`'s and `max`'s order, so NaNs fall the same way; `<=` is
+/// the same ordered compare), so each ray gets the same answer to the bit.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+pub(super) fn children_avx2<const ANY_HIT: bool>(
+    node: &wide::Node4,
+    soa: &Soa,
+    mask: u32,
+    best_t: &Lanes,
+    out: &mut Children,
+) {
+    use std::arch::x86_64::*;
+    out.reset();
+    // SAFETY: `Lanes` is 64-byte aligned (32 would do here) and holds
+    // `WIDTH` f32, a multiple of eight, as the aligned loads and stores at
+    // every eighth one need; the rest is arithmetic on registers.
+    unsafe {
+        let scale = _mm256_set1_ps(f32::BOX_T_SCALE);
+        let zero = _mm256_setzero_ps();
+        let inf = _mm256_set1_ps(f32::INFINITY);
+        let bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+        for g in 0..WIDTH / 8 {
+            let m8 = mask >> (8 * g) & 255;
+            if m8 == 0 {
+                continue;
+            }
+            let load = |l: &Lanes| _mm256_load_ps(l.0.as_ptr().add(8 * g));
+            let o = [load(&soa.o[0]), load(&soa.o[1]), load(&soa.o[2])];
+            let inv = [load(&soa.inv[0]), load(&soa.inv[1]), load(&soa.inv[2])];
+            let bt = load(best_t);
+            for lane in 0..4 {
+                if node.child[lane] == wide::EMPTY {
+                    continue;
+                }
+                let (t_near, t_far) = box_entry_exit!(
+                    node, lane, o, inv, bt, zero, scale;
+                    _mm256_set1_ps, _mm256_sub_ps, _mm256_mul_ps, _mm256_min_ps, _mm256_max_ps
+                );
+                let passed = _mm256_cmp_ps::<_CMP_LE_OS>(t_near, t_far);
+                let hit = _mm256_movemask_ps(passed) as u32 & m8;
+                if hit == 0 {
+                    continue;
+                }
+                out.hits[lane] |= hit << (8 * g);
+                if !ANY_HIT {
+                    _mm256_store_ps(out.near[lane].0.as_mut_ptr().add(8 * g), t_near);
+                    // The nearest entry among the rays that hit: the others
+                    // at +inf, then a min across the lanes.
+                    let chosen = _mm256_cmpeq_epi32(
+                        _mm256_and_si256(_mm256_set1_epi32(hit as i32), bits),
+                        bits,
+                    );
+                    let t = _mm256_blendv_ps(inf, t_near, _mm256_castsi256_ps(chosen));
+                    let m = _mm_min_ps(_mm256_castps256_ps128(t), _mm256_extractf128_ps::<1>(t));
+                    let m = _mm_min_ps(m, _mm_movehl_ps(m, m));
+                    let m = _mm_min_ss(m, _mm_shuffle_ps::<1>(m, m));
+                    out.nearest[lane] = out.nearest[lane].min(_mm_cvtss_f32(m));
+                }
+            }
+        }
+    }
+}
+
+/// A leaf block's triangles against the rays of octet `g` in `m8` that
+/// share the axis order `k`, eight rays at a time with AVX2: per ray
+/// `wide::hit_block_f32`'s operations in its order on the same values (the
+/// vertices broadcast where it loads them four triangles wide; ordered
+/// compares as `cmplt` and `cmpgt`, unordered as `cmpne`), each triangle
+/// against the ray's limit at the block's start, and its hit kept, as
+/// there, only when nearer than the block's hits before it. So each ray
+/// gets `hit_block_f32`'s answer to the bit. Writes the rays' new hits
+/// and returns the bits of the rays that found one.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+pub(super) fn hit_block_octet(
+    block: &wide::LeafBlock,
+    soa: &Soa,
+    k: [usize; 3],
+    g: usize,
+    m8: u32,
+    best: &mut [Hit<f32>; WIDTH],
+    best_t: &mut Lanes,
+) -> u32 {
+    use std::arch::x86_64::*;
+    let [kx, ky, kz] = k;
+    // The octet's nearest hits, lane i for ray 8g + i.
+    let mut t_out = [0.0f32; 8];
+    let mut b1_out = [0.0f32; 8];
+    let mut b2_out = [0.0f32; 8];
+    let mut which = [0i32; 8];
+    // SAFETY: `Lanes` is 64-byte aligned (32 would do here) and holds
+    // `WIDTH` f32, a multiple of eight, as the aligned loads at every
+    // eighth one need; the outputs are eight lanes each, written
+    // unaligned; the rest is arithmetic on registers.
+    let found = unsafe {
+        let load = |l: &Lanes| _mm256_load_ps(l.0.as_ptr().add(8 * g));
+        let (ox, oy, oz) = (load(&soa.o[kx]), load(&soa.o[ky]), load(&soa.o[kz]));
+        let (s0, s1, s2) = (
+            load(&soa.shear[0]),
+            load(&soa.shear[1]),
+            load(&soa.shear[2]),
+        );
+        let t_max = load(best_t);
+        let zero = _mm256_setzero_ps();
+        let one = _mm256_set1_ps(1.0);
+        let mut run_t = t_max;
+        let mut run_b1 = zero;
+        let mut run_b2 = zero;
+        let mut run_k = _mm256_set1_epi32(-1);
+        let lanes = block.lanes();
+        for j in 0..4 {
+            if lanes & 1 << j == 0 {
+                continue;
+            }
+            let p = |axis: usize, corner: usize| _mm256_set1_ps(block.p[axis][corner][j]);
+            let a_z = _mm256_sub_ps(p(kz, 0), oz);
+            let b_z = _mm256_sub_ps(p(kz, 1), oz);
+            let c_z = _mm256_sub_ps(p(kz, 2), oz);
+            let ax = _mm256_sub_ps(_mm256_sub_ps(p(kx, 0), ox), _mm256_mul_ps(s0, a_z));
+            let ay = _mm256_sub_ps(_mm256_sub_ps(p(ky, 0), oy), _mm256_mul_ps(s1, a_z));
+            let bx = _mm256_sub_ps(_mm256_sub_ps(p(kx, 1), ox), _mm256_mul_ps(s0, b_z));
+            let by = _mm256_sub_ps(_mm256_sub_ps(p(ky, 1), oy), _mm256_mul_ps(s1, b_z));
+            let cx = _mm256_sub_ps(_mm256_sub_ps(p(kx, 2), ox), _mm256_mul_ps(s0, c_z));
+            let cy = _mm256_sub_ps(_mm256_sub_ps(p(ky, 2), oy), _mm256_mul_ps(s1, c_z));
+            let u = _mm256_sub_ps(_mm256_mul_ps(cx, by), _mm256_mul_ps(cy, bx));
+            let v = _mm256_sub_ps(_mm256_mul_ps(ax, cy), _mm256_mul_ps(ay, cx));
+            let w = _mm256_sub_ps(_mm256_mul_ps(bx, ay), _mm256_mul_ps(by, ax));
+            let lt = |a, b| _mm256_cmp_ps::<_CMP_LT_OS>(a, b);
+            let gt = |a, b| _mm256_cmp_ps::<_CMP_GT_OS>(a, b);
+            let or = |a, b| _mm256_or_ps(a, b);
+            let and = |a, b| _mm256_and_ps(a, b);
+            let some_negative = or(or(lt(u, zero), lt(v, zero)), lt(w, zero));
+            let some_positive = or(or(gt(u, zero), gt(v, zero)), gt(w, zero));
+            let det = _mm256_add_ps(_mm256_add_ps(u, v), w);
+            let t_scaled = _mm256_add_ps(
+                _mm256_add_ps(
+                    _mm256_mul_ps(u, _mm256_mul_ps(s2, a_z)),
+                    _mm256_mul_ps(v, _mm256_mul_ps(s2, b_z)),
+                ),
+                _mm256_mul_ps(w, _mm256_mul_ps(s2, c_z)),
+            );
+            let end = _mm256_mul_ps(t_max, det);
+            let positive = and(gt(t_scaled, zero), lt(t_scaled, end));
+            let negative = and(lt(t_scaled, zero), gt(t_scaled, end));
+            let det_positive = gt(det, zero);
+            let inside = or(
+                and(det_positive, positive),
+                _mm256_andnot_ps(det_positive, negative),
+            );
+            let hit = _mm256_andnot_ps(
+                and(some_negative, some_positive),
+                and(_mm256_cmp_ps::<_CMP_NEQ_UQ>(det, zero), inside),
+            );
+            if _mm256_movemask_ps(hit) as u32 & m8 == 0 {
+                continue;
+            }
+            let inv_det = _mm256_div_ps(one, det);
+            let t = _mm256_mul_ps(t_scaled, inv_det);
+            let keep = and(hit, lt(t, run_t));
+            run_t = _mm256_blendv_ps(run_t, t, keep);
+            run_b1 = _mm256_blendv_ps(run_b1, _mm256_mul_ps(v, inv_det), keep);
+            run_b2 = _mm256_blendv_ps(run_b2, _mm256_mul_ps(w, inv_det), keep);
+            run_k = _mm256_blendv_epi8(
+                run_k,
+                _mm256_set1_epi32(j as i32),
+                _mm256_castps_si256(keep),
+            );
+        }
+        let found = !(_mm256_movemask_ps(_mm256_castsi256_ps(run_k)) as u32) & m8;
+        if found != 0 {
+            _mm256_storeu_ps(t_out.as_mut_ptr(), run_t);
+            _mm256_storeu_ps(b1_out.as_mut_ptr(), run_b1);
+            _mm256_storeu_ps(b2_out.as_mut_ptr(), run_b2);
+            _mm256_storeu_si256(which.as_mut_ptr().cast(), run_k);
+        }
+        found
+    };
+    let mut each = found;
+    while each != 0 {
+        let i = each.trailing_zeros() as usize;
+        each &= each - 1;
+        let r = 8 * g + i;
+        best[r] = Hit {
+            t: t_out[i],
+            prim: block.prims[which[i] as usize],
+            b1: b1_out[i],
+            b2: b2_out[i],
+        };
+        best_t.0[r] = t_out[i];
+    }
+    found << (8 * g)
+}

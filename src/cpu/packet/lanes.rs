@@ -1,0 +1,267 @@
+//! A packet's data: one f32 per ray in aligned lanes, the rays in SoA
+//! form, the per-node child results, and the packet's rays themselves.
+
+use crate::cpu::trace::{ray_with_inverse, CpuScene, Ray, Sphere};
+use crate::cpu::Real;
+use glam::{BVec4A, Vec3, Vec4};
+
+/// A node that at most this many of a packet's rays reach is walked by each
+/// of them alone. Low in a big tree most packet visits carry one or two rays
+/// (the 2M grid: 111,054 of the primary packets' 319,602 node visits), and
+/// each paid the whole packet's pops, sorts and masks. Thread CPU time,
+/// alternating, medians of 7, five rounds on a quiet machine: the 2M grid
+/// 3-4% faster at 2 (1.5-3% at 3, 1-2.5% at 1), the other scenes within
+/// 1%. (In stop 31, on the same machine in a noisy hour, it did not show.)
+pub(super) const HAND_OFF: u32 = 2;
+
+/// Rays in a packet.
+pub const WIDTH: usize = 32;
+
+/// Fewer of an octet's rays than this meet a leaf block one by one: by
+/// operation count the octet test (four triangles of about 45 operations)
+/// costs what about three single rays' block tests do; 1 and 5 measured
+/// level with 3 within this machine's noise.
+pub(super) const OCTET_MIN_RAYS: u32 = 3;
+
+// A packet's rays are bits of a u32 mask, taken eight (AVX2) or sixteen
+// (AVX-512) at a time.
+const _: () = assert!(WIDTH <= 32 && WIDTH.is_multiple_of(16));
+
+/// SSE vectors (quads of rays) in a packet.
+pub(super) const QUADS: usize = WIDTH / 4;
+
+/// One f32 per ray of a packet, aligned for its loads in quads (SSE),
+/// octets (AVX2) and sixteens (AVX-512).
+#[derive(Clone, Copy, Debug)]
+#[repr(C, align(64))]
+pub(super) struct Lanes(pub(super) [f32; WIDTH]);
+
+impl Lanes {
+    #[inline(always)]
+    pub(super) fn quad(&self, h: usize) -> Vec4 {
+        Vec4::from_slice(&self.0[4 * h..4 * h + 4])
+    }
+
+    #[inline(always)]
+    pub(super) fn set_quad(&mut self, h: usize, v: Vec4) {
+        v.write_to_slice(&mut self.0[4 * h..4 * h + 4]);
+    }
+}
+
+/// A packet's rays by component.
+pub(super) struct Soa {
+    pub(super) o: [Lanes; 3],
+    pub(super) dir: [Lanes; 3],
+    pub(super) inv: [Lanes; 3],
+    /// The rays' `shear`, for the triangle test.
+    pub(super) shear: [Lanes; 3],
+    /// Per octet of rays, their axis order `k` where all eight share it
+    /// (the octet's triangle tests can then run across its rays).
+    pub(super) k: [Option<[usize; 3]>; WIDTH / 8],
+}
+
+impl Soa {
+    #[inline(always)]
+    pub(super) fn new(rays: &[Ray<f32>; WIDTH]) -> Self {
+        let mut soa = Soa {
+            o: [Lanes([0.0; WIDTH]); 3],
+            dir: [Lanes([0.0; WIDTH]); 3],
+            inv: [Lanes([0.0; WIDTH]); 3],
+            shear: [Lanes([0.0; WIDTH]); 3],
+            k: [None; WIDTH / 8],
+        };
+        for (r, ray) in rays.iter().enumerate() {
+            for axis in 0..3 {
+                soa.o[axis].0[r] = ray.origin[axis];
+                soa.dir[axis].0[r] = ray.dir[axis];
+                soa.inv[axis].0[r] = ray.inv_dir[axis];
+                soa.shear[axis].0[r] = ray.shear[axis];
+            }
+        }
+        for (g, k) in soa.k.iter_mut().enumerate() {
+            let octet = &rays[8 * g..8 * g + 8];
+            if octet.iter().all(|r| r.k == octet[0].k) {
+                *k = Some(octet[0].k);
+            }
+        }
+        soa
+    }
+}
+
+/// `trace::hit_sphere` (robust, no grazing band, the sphere where it
+/// stands) for every ray of a packet, four at a time: the same operations
+/// in the same order per lane, `f32::min` and `max` included (a NaN root
+/// gives way to the other), so each ray gets the scalar test's t to the
+/// bit. Each ray's limit is its own `best_t`; a miss is `T_INF`.
+#[inline(always)]
+pub(super) fn hit_sphere_rays(soa: &Soa, s: &Sphere<f32>, best_t: &Lanes) -> Lanes {
+    let mut out = Lanes([f32::T_INF; WIDTH]);
+    let rr = s.radius * s.radius;
+    let dot = |a: [Vec4; 3], b: [Vec4; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+    let fmin = |a: Vec4, b: Vec4| {
+        Vec4::select(
+            a.is_nan_mask(),
+            b,
+            Vec4::select(b.is_nan_mask(), a, a.min(b)),
+        )
+    };
+    let fmax = |a: Vec4, b: Vec4| {
+        Vec4::select(
+            a.is_nan_mask(),
+            b,
+            Vec4::select(b.is_nan_mask(), a, a.max(b)),
+        )
+    };
+    for h in 0..QUADS {
+        let d = [0, 1, 2].map(|axis| soa.dir[axis].quad(h));
+        let f = [0, 1, 2].map(|axis| soa.o[axis].quad(h) - Vec4::splat(s.center[axis]));
+        let a = dot(d, d);
+        let b = -dot(f, d);
+        let c = dot(f, f) - Vec4::splat(rr);
+        let ba = b / a;
+        let l = [0, 1, 2].map(|axis| f[axis] + d[axis] * ba);
+        let disc = Vec4::splat(rr) - dot(l, l);
+        let sign = Vec4::select(b.cmpge(Vec4::ZERO), Vec4::ONE, Vec4::NEG_ONE);
+        let q = b + sign * (a * disc).sqrt();
+        let miss = disc.cmplt(Vec4::ZERO);
+        let t0 = Vec4::select(miss, Vec4::splat(f32::T_INF), c / q);
+        let t1 = Vec4::select(miss, Vec4::splat(f32::T_INF), q / a);
+        let (t_lo, t_hi) = (fmin(t0, t1), fmax(t0, t1));
+        let t_max = best_t.quad(h);
+        let zero = Vec4::ZERO;
+        let lo_ok = t_lo.cmpgt(zero) & t_lo.cmplt(t_max);
+        let hi_ok = t_hi.cmpgt(zero) & t_hi.cmplt(t_max);
+        let t = Vec4::select(
+            lo_ok,
+            t_lo,
+            Vec4::select(hi_ok, t_hi, Vec4::splat(f32::T_INF)),
+        );
+        out.set_quad(h, t);
+    }
+    out
+}
+
+/// A node's four children against a packet: per child lane, the rays
+/// (of `mask`) whose box test it passes, their entry t, and the nearest of
+/// those (the last two left at 0 and +inf in an any-hit traversal, which
+/// does not need them). One per traversal, rewritten at each node (`reset`)
+/// rather than made and returned per node: its 544 bytes were a `memset`
+/// and a `memcpy` at every node visit (7% of the traversal's instructions
+/// on the 22k grid, by callgrind).
+pub(super) struct Children {
+    pub(super) hits: [u32; 4],
+    pub(super) near: [Lanes; 4],
+    pub(super) nearest: [f32; 4],
+}
+
+impl Children {
+    /// No ray in any box yet.
+    pub(super) const NONE: Children = Children {
+        hits: [0; 4],
+        near: [Lanes([0.0; WIDTH]); 4],
+        nearest: [f32::INFINITY; 4],
+    };
+
+    /// No ray in any box, for the next node. `near` keeps what it held:
+    /// only the entries of rays in `hits` are read, and a node's test
+    /// writes those (a whole octet or quad of them wherever one ray hit).
+    #[inline(always)]
+    pub(super) fn reset(&mut self) {
+        self.hits = [0; 4];
+        self.nearest = [f32::INFINITY; 4];
+    }
+}
+
+/// The lanes of a 4-bit mask, for selects.
+pub(super) const LANES: [BVec4A; 16] = {
+    let mut out = [BVec4A::FALSE; 16];
+    let mut m = 0;
+    while m < 16 {
+        out[m] = BVec4A::new(m & 1 != 0, m & 2 != 0, m & 4 != 0, m & 8 != 0);
+        m += 1;
+    }
+    out
+};
+
+/// A node to open: its index, the rays whose box test reached it, and the
+/// nearest of their entry t.
+pub(super) type Entry = (u32, u32, f32);
+
+/// What a traversal is asked: the closest hit (or, in an any-hit
+/// traversal, a blocker) before `t_max` of each ray whose bit is set in
+/// `active`.
+#[derive(Clone, Copy)]
+pub(super) struct Query<'a> {
+    pub(super) rays: &'a [Ray<f32>; WIDTH],
+    pub(super) active: u32,
+    pub(super) t_max: f32,
+}
+
+/// Starts loading what will be read soon: every cache line `items` (side
+/// by side in memory) touch, with a counted loop over the lines (a
+/// `step_by` per item took a twentieth of the traversal's instructions on
+/// the 240k grid, by cachegrind).
+#[inline(always)]
+pub(super) fn prefetch<T>(items: &[T]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let range = items.as_ptr_range();
+        // From the line holding the first byte to the one holding the
+        // last: an item need not start on a line.
+        let mut line = range.start as usize & !63;
+        while line < range.end as usize {
+            // SAFETY: prefetching has no effect on memory, and never faults.
+            unsafe { _mm_prefetch(line as *const i8, _MM_HINT_T0) };
+            line += 64;
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = items;
+}
+
+/// `trace::make_ray` (at time 0) for a packet's rays, their divisions four
+/// rays at a time: per lane the same operations on the same values, so
+/// each ray is `make_ray`'s to the bit.
+#[inline(always)]
+pub(super) fn make_rays(origins: &[Vec3; WIDTH], dirs: &[Vec3; WIDTH]) -> [Ray<f32>; WIDTH] {
+    let mut inv = [Lanes([0.0; WIDTH]); 3];
+    for (axis, inv) in inv.iter_mut().enumerate() {
+        for h in 0..QUADS {
+            let d = Vec4::from_array(std::array::from_fn(|i| dirs[4 * h + i][axis]));
+            // `trace::safe_dir`, lane by lane.
+            let sign = Vec4::select(d.cmpge(Vec4::ZERO), Vec4::ONE, Vec4::NEG_ONE);
+            let tiny = d.abs().cmplt(Vec4::splat(f32::MIN_DIR));
+            let safe = Vec4::select(tiny, sign * Vec4::splat(f32::MIN_DIR), d);
+            inv.set_quad(h, Vec4::ONE / safe);
+        }
+    }
+    std::array::from_fn(|i| {
+        let inv_dir = Vec3::new(inv[0].0[i], inv[1].0[i], inv[2].0[i]);
+        ray_with_inverse(origins[i], dirs[i], inv_dir, 0.0)
+    })
+}
+
+/// `trace::pixel_ray` for each of `pixels`, four at a time: the same
+/// operations in the same order per lane (`camera_ray`'s, the
+/// normalisation's, `make_ray`'s), so each ray is `pixel_ray`'s to the bit.
+pub(super) fn pixel_rays(scene: &CpuScene<f32>, pixels: &[[u32; 2]; WIDTH]) -> [Ray<f32>; WIDTH] {
+    let (w, h) = (scene.size[0] as f32, scene.size[1] as f32);
+    let [hx, hy] = scene.half_extent;
+    let mut dirs = [Vec3::ZERO; WIDTH];
+    for q in 0..QUADS {
+        let x = Vec4::from_array(std::array::from_fn(|i| pixels[4 * q + i][0] as f32));
+        let y = Vec4::from_array(std::array::from_fn(|i| pixels[4 * q + i][1] as f32));
+        let two = Vec4::splat(2.0);
+        let ndc_x = (two * (x + Vec4::splat(0.5)) / Vec4::splat(w) - Vec4::ONE) * Vec4::splat(hx);
+        let ndc_y = (Vec4::ONE - two * (y + Vec4::splat(0.5)) / Vec4::splat(h)) * Vec4::splat(hy);
+        // `Real::normalize` of (x, y, -1): its dot product, left to right.
+        let len2 = ndc_x * ndc_x + ndc_y * ndc_y + Vec4::ONE;
+        let s = Vec4::ONE / len2.sqrt();
+        let (dx, dy, dz) = (ndc_x * s, ndc_y * s, Vec4::NEG_ONE * s);
+        for i in 0..4 {
+            dirs[4 * q + i] = Vec3::new(dx[i], dy[i], dz[i]);
+        }
+    }
+    make_rays(&[Vec3::ZERO; WIDTH], &dirs)
+}

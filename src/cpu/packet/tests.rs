@@ -1,0 +1,590 @@
+//! Packets against single rays: the same hits, shadow verdicts and
+//! colours, where and as far as the module docs allow.
+
+#[cfg(target_arch = "x86_64")]
+use super::avx2::*;
+#[cfg(target_arch = "x86_64")]
+use super::avx512::*;
+use super::lanes::*;
+use super::shade::*;
+use super::sse::*;
+use super::walk::*;
+use crate::bvh::wide;
+use crate::bvh::Bvh;
+use crate::cpu::trace::{make_ray, traverse as single, CpuGeometry};
+use crate::cpu::trace::{surface_point, CpuScene, Hit, Ray, Sphere, SurfacePoint, NO_HIT};
+use crate::cpu::CpuOptions;
+use crate::cpu::Real;
+use crate::scene::Scene;
+use glam::{Vec3, Vec4};
+
+/// `n` random triangles in front of the camera, their tree, and their
+/// f32 geometry.
+fn fixture(n: usize) -> (Scene, Bvh, CpuGeometry<f32>) {
+    let scene = wide::tests::scene(n);
+    let bvh = Bvh::build(&scene);
+    let geometry = CpuGeometry::new(&scene, &bvh, &Default::default());
+    (scene, bvh, geometry)
+}
+
+/// Uniform numbers in [-1, 1), replayable from `seed`.
+fn uniform(seed: u32) -> impl FnMut() -> f32 {
+    let mut state = seed;
+    move || {
+        state = crate::hash::hash_u32(state);
+        f32::from_bits(state >> 9 | 0x3f80_0000) * 2.0 - 3.0
+    }
+}
+
+/// Every ray of a packet gets the single ray's closest hit (the same
+/// t to the bit; a different primitive only at that same t) and the
+/// single ray's shadow verdict, packets coherent or not, some lanes off.
+#[test]
+fn packets_find_what_single_rays_find() {
+    let (scene, bvh, geometry) = fixture(3000);
+    let camera = crate::camera::Camera::new(64, 48);
+    let cpu = CpuScene::new(&scene, &bvh, &geometry, &camera, &CpuOptions::default());
+    let mut next = uniform(17);
+    let (mut hits, mut blocked, mut ties) = (0, 0, 0);
+    for p in 0..600 {
+        // Coherent packets (one origin, close directions), scattered
+        // ones, and ones whose rays share a direction from many origins
+        // (shadow rays towards one light).
+        let origin = Vec3::new(next(), next(), next()) * 2.0;
+        let dir = Vec3::new(next(), next(), next() - 1.0);
+        let spread = [0.01, 1.0, 0.0][p % 3];
+        let rays: [Ray<f32>; WIDTH] = std::array::from_fn(|_| {
+            let o = if p % 3 == 2 {
+                origin + Vec3::new(next(), next(), next())
+            } else {
+                origin
+            };
+            let d = dir + Vec3::new(next(), next(), next()) * spread;
+            make_ray::<f32>(o, d.normalize(), 0.0)
+        });
+        let all = u32::MAX >> (32 - WIDTH);
+        let active = if p % 5 == 0 { 0xb6b6_b6b6 & all } else { all };
+        let got = traverse(&cpu, &rays, active, f32::MAX, false);
+        for (r, ray) in rays.iter().enumerate() {
+            if active & (1 << r) == 0 {
+                assert_eq!(got[r].prim, NO_HIT);
+                continue;
+            }
+            let want = single(&cpu, ray, f32::MAX, false, &[], 0.0);
+            assert_eq!(got[r].t.to_bits(), want.t.to_bits(), "packet {p} ray {r}");
+            if got[r].prim != want.prim {
+                ties += 1;
+            } else {
+                assert_eq!(
+                    (got[r].b1.to_bits(), got[r].b2.to_bits()),
+                    (want.b1.to_bits(), want.b2.to_bits())
+                );
+            }
+            hits += usize::from(want.prim != NO_HIT);
+        }
+        // Shadow rays of random lengths.
+        let shadows: [Ray<f32>; WIDTH] = std::array::from_fn(|r| {
+            let end = (next() + 1.0) * 20.0;
+            make_ray::<f32>(rays[r].origin, rays[r].dir * end, 0.0)
+        });
+        let got = traverse(&cpu, &shadows, active, 1.0, true);
+        for (r, ray) in shadows.iter().enumerate() {
+            if active & (1 << r) == 0 {
+                continue;
+            }
+            let want = single(&cpu, ray, 1.0, true, &[], 0.0);
+            assert_eq!(got[r].prim != NO_HIT, want.prim != NO_HIT, "packet {p}");
+            blocked += usize::from(want.prim != NO_HIT);
+        }
+    }
+    assert!(
+        hits > 1000 && blocked > 300,
+        "{hits} hits, {blocked} blocked"
+    );
+    assert!(ties < hits / 100, "{ties} ties");
+}
+
+/// The SIMD surface point is the generic one to the bit, field by
+/// field: on triangles of every size (1e-20 to 1e20 across, so that
+/// products overflow and underflow), flat ones (whose geometric normal
+/// falls back), zero and opposed shading normals (whose sum falls back),
+/// a different material at each corner, and barycentrics inside, on
+/// the edges and outside.
+#[test]
+fn simd_surface_point_is_the_generic_one_to_the_bit() {
+    use crate::scene::{Material, Triangle, Vertex};
+    use glam::DVec3;
+    let mut next = uniform(5);
+    let mut scene = Scene::default();
+    let materials: Vec<u32> = (0..8)
+        .map(|_| {
+            let mut c =
+                || DVec3::new(f64::from(next()), f64::from(next()), f64::from(next())).abs();
+            scene.add_material(Material {
+                kd: c(),
+                ks: c(),
+                shininess: f64::from(next().abs()) * 100.0,
+            })
+        })
+        .collect();
+    for i in 0..4000usize {
+        let size = 10f64.powi((i % 41) as i32 - 20);
+        let c = DVec3::new(
+            f64::from(next()),
+            f64::from(next()),
+            f64::from(next()) - 2.0,
+        ) * size;
+        let flat = i % 7 == 0;
+        let vertices = [0usize, 1, 2].map(|k| {
+            let d = DVec3::new(f64::from(next()), f64::from(next()), f64::from(next()));
+            let position = if flat {
+                c + DVec3::X * (k as f64 + 0.5) * size
+            } else {
+                c + d * size
+            };
+            let normal = match (i + k) % 5 {
+                0 => DVec3::ZERO,
+                1 if k > 0 => -DVec3::Y,
+                1 => DVec3::Y,
+                _ => DVec3::new(f64::from(next()), f64::from(next()), f64::from(next())),
+            };
+            Vertex {
+                position,
+                normal,
+                material: materials[(i + 3 * k) % materials.len()],
+            }
+        });
+        scene.triangles.push(Triangle {
+            vertices,
+            velocity: DVec3::ZERO,
+        });
+    }
+    let bvh = Bvh::build(&scene);
+    let geometry = CpuGeometry::new(&scene, &bvh, &Default::default());
+    let camera = crate::camera::Camera::new(64, 48);
+    let cpu = CpuScene::new(&scene, &bvh, &geometry, &camera, &CpuOptions::default());
+    let ray = make_ray::<f32>(Vec3::ZERO, Vec3::NEG_Z, 0.0);
+    let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+    for prim in 0..scene.triangles.len() as u32 {
+        for k in 0..8 {
+            let (b1, b2) = match k {
+                0 => (0.0, 0.0),
+                1 => (1.0, 0.0),
+                2 => (0.5, 0.5),
+                3 => (1.5, -0.25),
+                _ => ((next() + 1.0) * 0.5, (next() + 1.0) * 0.25),
+            };
+            let hit = Hit {
+                t: 1.0,
+                prim,
+                b1,
+                b2,
+            };
+            let want = surface_point(&cpu, &ray, &hit);
+            let got = surface_point_f32(&cpu, &ray, &hit);
+            let fields = |s: &SurfacePoint<f32>| {
+                (
+                    [s.p, s.n, s.ng, s.scale, s.kd, s.ks].map(bits),
+                    s.shininess.to_bits(),
+                )
+            };
+            assert_eq!(fields(&got), fields(&want), "triangle {prim}, b {b1} {b2}");
+        }
+    }
+}
+
+/// The SIMD point-light term is the generic one's contribution to the
+/// bit: lights at the point itself (no direction), behind the surface,
+/// shininess 0 (0^0 = 1) and large, views along and against the normal.
+#[test]
+fn simd_point_term_is_the_generic_one_to_the_bit() {
+    use crate::cpu::trace::point_shading;
+    let mut next = uniform(9);
+    let mut v = || Vec3::new(next(), next(), next());
+    let bits = |v: Vec3| v.to_array().map(f32::to_bits);
+    for i in 0..200_000 {
+        let p = v() * 10.0;
+        let n = if i % 9 == 0 {
+            Vec3::ZERO
+        } else {
+            v().normalize_or_zero()
+        };
+        let sp = SurfacePoint {
+            p,
+            n,
+            ng: n,
+            scale: p.abs(),
+            kd: v().abs(),
+            ks: v().abs(),
+            shininess: [0.0, 1.0, 0.5, 100.0][i % 4] * (1.0 + v().x),
+        };
+        let target = match i % 7 {
+            0 => p,
+            1 => p - n,
+            _ => v() * 20.0,
+        };
+        let view = match i % 5 {
+            0 => n,
+            1 => -n,
+            _ => v().normalize_or_zero(),
+        };
+        let color = v().abs();
+        let blocker = Hit {
+            t: 0.0,
+            prim: NO_HIT,
+            b1: 0.0,
+            b2: 0.0,
+        };
+        let want = point_shading(&sp, view, target, color, p, blocker).contribution;
+        let got = point_contribution_f32(&sp, view, target, color);
+        assert_eq!(bits(got.into()), bits(want), "case {i}");
+    }
+}
+
+/// The AVX2 and AVX-512 box tests give every ray what the SSE one gives
+/// it, to the bit: which children it passes and its entry t, including
+/// rays along an axis plane (either sign of zero) and rays with a NaN
+/// direction. Each is checked where the CPU has it, and says so where
+/// it has not.
+#[test]
+fn avx_boxes_match_sse() {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if !std::arch::is_x86_feature_detected!("avx2") {
+            eprintln!("SKIPPED: avx_boxes_match_sse: this CPU has no AVX2");
+            return;
+        }
+        let avx512 = std::arch::is_x86_feature_detected!("avx512f");
+        if !avx512 {
+            eprintln!("SKIPPED: avx_boxes_match_sse's AVX-512 half: this CPU has no AVX-512F");
+        }
+        let (scene, bvh, geometry) = fixture(500);
+        let camera = crate::camera::Camera::new(64, 48);
+        let cpu = CpuScene::new(&scene, &bvh, &geometry, &camera, &CpuOptions::default());
+        let mut next = uniform(23);
+        let mut passed = 0;
+        for p in 0..300 {
+            let nodes = &cpu.wide.nodes;
+            let rays: [Ray<f32>; WIDTH] = std::array::from_fn(|r| {
+                let mut o = Vec3::new(next(), next(), next()) * 4.0;
+                let mut d = Vec3::new(next(), next(), next() - 1.0);
+                match (p + r) % 8 {
+                    1 => d.x = 0.0,
+                    2 => d.y = -0.0,
+                    3 if p % 16 == 3 => d = Vec3::NAN,
+                    _ => {}
+                }
+                if p % 4 == 1 {
+                    // On a box's faces: a ray leaving through a face
+                    // meets its box at t_near = t_far = 0, which only
+                    // `<=` passes.
+                    let node = &nodes[(next().abs() * 1e4) as usize % nodes.len()];
+                    let lane = r % 4;
+                    for axis in 0..3 {
+                        if (p / 4 + r + axis) % 3 != 0 {
+                            o[axis] = [node.lo, node.hi][(r + axis) % 2][axis][lane];
+                            d[axis] = [0.0, 1.0, -1.0][(p / 4 + axis) % 3];
+                        }
+                    }
+                }
+                let d = if d.is_nan() { d } else { d.normalize() };
+                make_ray::<f32>(o, d, 0.0)
+            });
+            let soa = Soa::new(&rays);
+            let best_t = Lanes(std::array::from_fn(|_| {
+                if next() > 0.0 {
+                    f32::MAX
+                } else {
+                    next() + 20.0
+                }
+            }));
+            let all = u32::MAX >> (32 - WIDTH);
+            let mask = if p % 3 == 0 { 0x6d6d_6d6d & all } else { all };
+            // Reused from node to node, as a traversal does.
+            let [mut a, mut b, mut c, mut d, mut e, mut f] = [0; 6].map(|_| Children::NONE);
+            for node in &cpu.wide.nodes {
+                children_sse::<false>(node, &soa, mask, &best_t, &mut a);
+                // SAFETY: the CPU has AVX2, checked above.
+                unsafe { children_avx2::<false>(node, &soa, mask, &best_t, &mut b) };
+                assert_eq!(a.hits, b.hits);
+                // The any-hit tests find the same rays in each box.
+                children_sse::<true>(node, &soa, mask, &best_t, &mut d);
+                assert_eq!(d.hits, a.hits);
+                // SAFETY: as above.
+                unsafe { children_avx2::<true>(node, &soa, mask, &best_t, &mut c) };
+                assert_eq!(c.hits, a.hits);
+                // The closest-hit tests' entries, where a ray passed.
+                let same_entries = |x: &Children| {
+                    for lane in 0..4 {
+                        for r in 0..WIDTH {
+                            if a.hits[lane] & (1 << r) != 0 {
+                                let near = a.near[lane].0[r].to_bits();
+                                assert_eq!(near, x.near[lane].0[r].to_bits());
+                            }
+                        }
+                        if a.hits[lane] != 0 {
+                            let nearest = a.nearest[lane].to_bits();
+                            assert_eq!(nearest, x.nearest[lane].to_bits());
+                        }
+                    }
+                };
+                same_entries(&b);
+                if avx512 {
+                    // SAFETY: the CPU has AVX-512F, checked above.
+                    unsafe {
+                        children_avx512::<false>(node, &soa, mask, &best_t, &mut e);
+                        children_avx512::<true>(node, &soa, mask, &best_t, &mut f);
+                    }
+                    assert_eq!(e.hits, a.hits);
+                    assert_eq!(f.hits, a.hits);
+                    same_entries(&e);
+                }
+                passed += a.hits.iter().map(|h| h.count_ones()).sum::<u32>();
+            }
+        }
+        assert!(passed > 1000, "{passed} box hits");
+    }
+}
+
+/// The packet's sphere test gives each ray the scalar test's t to the
+/// bit: hits from outside and inside, misses, grazing rays, rays from
+/// the centre, and rays with a NaN direction.
+#[test]
+fn sphere_rays_match_the_scalar_test() {
+    use crate::cpu::trace::hit_sphere;
+    let mut next = uniform(29);
+    let (mut hits, mut misses) = (0, 0);
+    for p in 0..2000 {
+        let s = Sphere {
+            center: Vec3::new(next(), next(), next() - 4.0),
+            radius: next().abs() + 0.01,
+            kd: Vec3::ONE,
+            ks: Vec3::ZERO,
+            shininess: 1.0,
+            velocity: Vec3::ZERO,
+        };
+        let rays: [Ray<f32>; WIDTH] = std::array::from_fn(|r| {
+            let o = match (p + r) % 5 {
+                0 => s.center,
+                1 => s.center + Vec3::new(next(), next(), next()) * s.radius * 0.5,
+                _ => Vec3::new(next(), next(), next()),
+            };
+            let target = s.center + Vec3::new(next(), next(), next()) * s.radius;
+            let d = if (p + r) % 97 == 3 {
+                Vec3::NAN
+            } else {
+                (target - o).normalize()
+            };
+            make_ray::<f32>(o, d, 0.0)
+        });
+        let best_t = Lanes(std::array::from_fn(|_| {
+            if next() > 0.0 {
+                f32::MAX
+            } else {
+                next() + 4.0
+            }
+        }));
+        let got = hit_sphere_rays(&Soa::new(&rays), &s, &best_t);
+        for (r, ray) in rays.iter().enumerate() {
+            let want = hit_sphere(ray, &s, best_t.0[r], 0.0);
+            assert_eq!(got.0[r].to_bits(), want.to_bits(), "sphere {p} ray {r}");
+            if want < best_t.0[r] {
+                hits += 1;
+            } else {
+                misses += 1;
+            }
+        }
+    }
+    assert!(hits > 3000 && misses > 1000, "{hits} hits, {misses} misses");
+}
+
+/// The octet triangle test gives each ray `wide::hit_block_f32`'s
+/// answer to the bit (which triangle, t, barycentrics), over blocks
+/// with empty lanes, degenerate and edge-sharing triangles, rays on
+/// every axis order and limits that cut hits off.
+#[cfg(target_arch = "x86_64")]
+#[test]
+fn octet_triangle_test_matches_the_block_test() {
+    if !std::arch::is_x86_feature_detected!("avx2") {
+        eprintln!("skipped: this CPU has no AVX2, so the octet test never runs");
+        return;
+    }
+    let mut next = uniform(41);
+    let (mut hits, mut misses, mut octets) = (0, 0, 0);
+    for b in 0..3000 {
+        let mut corners = [[Vec3::ZERO; 3]; 4];
+        for j in 0..4 {
+            let mut tri = [0; 3].map(|_| Vec3::new(next(), next(), next() - 3.0));
+            match (b + j) % 7 {
+                // Degenerate: two corners the same, or all in a line.
+                0 => tri[1] = tri[0],
+                1 => tri[2] = tri[0] + (tri[1] - tri[0]) * 0.5,
+                // An edge shared with the triangle before.
+                2 if j > 0 => [tri[0], tri[1]] = [corners[j - 1][1], corners[j - 1][2]],
+                _ => {}
+            }
+            corners[j] = tri;
+        }
+        let used = 1 + b % 4;
+        let block = wide::LeafBlock {
+            p: std::array::from_fn(|axis| {
+                std::array::from_fn(|corner| {
+                    Vec4::from_array(std::array::from_fn(|j| corners[j][corner][axis]))
+                })
+            }),
+            prims: std::array::from_fn(|j| if j < used { 10 + j as u32 } else { wide::NONE }),
+        };
+        // Rays aimed at the triangles, mostly along one axis so that
+        // octets share an axis order; every few packets a mixed one.
+        let axis = b % 3;
+        let rays: [Ray<f32>; WIDTH] = std::array::from_fn(|r| {
+            let tri = corners[r % used];
+            let (u, v) = (next().abs(), next().abs());
+            let target = tri[0] + (tri[1] - tri[0]) * u * 0.7 + (tri[2] - tri[0]) * v * 0.7;
+            let mut d = Vec3::new(next(), next(), next()) * 0.3;
+            d[axis] = if b % 2 == 0 { 1.0 } else { -1.0 };
+            if b % 11 == 5 {
+                d = Vec3::new(next(), next(), next());
+            }
+            let o = target - d * (2.0 + next().abs());
+            make_ray::<f32>(o, d.normalize(), 0.0)
+        });
+        let soa = Soa::new(&rays);
+        let limit: [f32; WIDTH] = std::array::from_fn(|_| {
+            if next() > -0.3 {
+                f32::MAX
+            } else {
+                next().abs() * 3.0
+            }
+        });
+        for (g, k) in soa.k.iter().enumerate() {
+            let Some(k) = *k else { continue };
+            octets += 1;
+            let m8 = (next().to_bits() >> 3 | 0x11) & 255;
+            let mut best = [Hit {
+                t: 0.0,
+                prim: NO_HIT,
+                b1: 0.0,
+                b2: 0.0,
+            }; WIDTH];
+            let mut best_t = Lanes(limit);
+            for (r, h) in best.iter_mut().enumerate() {
+                h.t = limit[r];
+            }
+            // SAFETY: the CPU has AVX2, checked above.
+            let found = unsafe { hit_block_octet(&block, &soa, k, g, m8, &mut best, &mut best_t) };
+            for i in 0..8 {
+                let r = 8 * g + i;
+                let want = if m8 & 1 << i == 0 {
+                    None
+                } else {
+                    crate::cpu::simd::hit_block_f32(
+                        rays[r].origin,
+                        rays[r].k,
+                        rays[r].shear,
+                        &block,
+                        limit[r],
+                    )
+                };
+                assert_eq!(found >> r & 1 == 1, want.is_some(), "block {b} ray {r}");
+                match want {
+                    Some((j, t, b1, b2)) => {
+                        hits += 1;
+                        let h = best[r];
+                        assert_eq!(h.prim, block.prims[j], "block {b} ray {r}");
+                        let got = [h.t, h.b1, h.b2, best_t.0[r]].map(f32::to_bits);
+                        assert_eq!(got, [t, b1, b2, t].map(f32::to_bits), "block {b} ray {r}");
+                    }
+                    None => {
+                        misses += 1;
+                        assert_eq!(best[r].prim, NO_HIT, "block {b} ray {r}");
+                        assert_eq!(best_t.0[r].to_bits(), limit[r].to_bits());
+                    }
+                }
+            }
+        }
+    }
+    assert!(
+        hits > 20_000 && misses > 20_000 && octets > 8_000,
+        "{hits} hits, {misses} misses, {octets} octets"
+    );
+}
+
+/// Every field of a ray, as bits.
+fn bits(r: &Ray<f32>) -> ([u32; 12], [usize; 3]) {
+    let v = |v: Vec3| v.to_array().map(f32::to_bits);
+    let [o, d, i, s] = [v(r.origin), v(r.dir), v(r.inv_dir), v(r.shear)];
+    let mut out = [0; 12];
+    for (k, x) in [o, d, i, s].iter().flatten().enumerate() {
+        out[k] = *x;
+    }
+    assert_eq!(r.time, 0.0);
+    (out, r.k)
+}
+
+/// The packet's rays are `make_ray`'s to the bit, for directions of
+/// every kind: components zero of either sign, below, at and above
+/// `MIN_DIR`, all three tiny, infinite, NaN.
+#[test]
+fn packet_rays_match_make_ray() {
+    let mut next = uniform(31);
+    let specials = [
+        0.0,
+        -0.0,
+        1e-31,
+        -1e-31,
+        f32::MIN_DIR,
+        -f32::MIN_DIR,
+        2e-30,
+        f32::INFINITY,
+        f32::NAN,
+        1.0,
+    ];
+    let mut special = 0;
+    for p in 0..500 {
+        let origins: [Vec3; WIDTH] =
+            std::array::from_fn(|_| Vec3::new(next(), next(), next()) * 8.0);
+        let dirs: [Vec3; WIDTH] = std::array::from_fn(|r| {
+            let mut d = Vec3::new(next(), next(), next());
+            if (p + r) % 3 == 0 {
+                special += 1;
+                d[special % 3] = specials[special % specials.len()];
+                if p % 7 == 0 {
+                    d[(special + 1) % 3] = specials[(special / 3) % specials.len()];
+                }
+            }
+            if p % 50 == 0 && r == 3 {
+                d = Vec3::splat(1e-31);
+            }
+            d
+        });
+        let got = make_rays(&origins, &dirs);
+        for r in 0..WIDTH {
+            let want = make_ray(origins[r], dirs[r], 0.0);
+            assert_eq!(bits(&got[r]), bits(&want), "{:?}", dirs[r]);
+        }
+    }
+}
+
+/// The packet's primary rays are `pixel_ray`'s to the bit, on images of
+/// odd and even sizes.
+#[test]
+fn packet_pixel_rays_match_pixel_ray() {
+    let (scene, bvh, geometry) = fixture(10);
+    for [w, h] in [[640, 480], [641, 241], [1, 1], [3, 7]] {
+        let camera = crate::camera::Camera::new(w, h);
+        let cpu = CpuScene::new(&scene, &bvh, &geometry, &camera, &CpuOptions::default());
+        let pixels: Vec<[u32; 2]> = (0..h)
+            .flat_map(|y| (0..w).map(move |x| [x, y]))
+            .filter(|&[x, y]| w < 100 || (x * 7 + y * 3) % 5 == 0)
+            .collect();
+        for chunk in pixels.chunks(WIDTH) {
+            let tile = std::array::from_fn(|i| chunk[i.min(chunk.len() - 1)]);
+            for (r, ray) in pixel_rays(&cpu, &tile).iter().enumerate() {
+                let [x, y] = tile[r];
+                let want = crate::cpu::trace::pixel_ray(&cpu, x, y);
+                assert_eq!(bits(ray), bits(&want), "{w}x{h} pixel {x},{y}");
+            }
+        }
+    }
+}

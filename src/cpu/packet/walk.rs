@@ -1,0 +1,348 @@
+//! The packet traversal: the wide tree opened once for all the packet's
+//! rays, compiled for SSE, AVX2 or AVX-512 and chosen at run time.
+
+#[cfg(target_arch = "x86_64")]
+use super::avx2::{children_avx2, hit_block_octet};
+#[cfg(target_arch = "x86_64")]
+use super::avx512::children_avx512;
+use super::lanes::*;
+use super::sse::children_sse;
+use crate::bvh::wide;
+use crate::cpu::trace::{hit_leaf, hit_triangle, CpuScene, Hit, Ray, NO_HIT};
+use crate::cpu::Real;
+use crate::layout::SPHERE_BIT;
+use crate::methods::Methods;
+use glam::Vec4;
+
+/// The closest hit (`any_hit`: a blocker) before `t_max` of each ray whose
+/// bit is set in `active`; the other rays' hits say `NO_HIT`. As
+/// `trace::traverse` with no surfaces to skip and no grazing band. Tests a
+/// node's boxes eight rays at a time where the CPU has AVX2, else four.
+pub fn traverse(
+    scene: &CpuScene<f32>,
+    rays: &[Ray<f32>; WIDTH],
+    active: u32,
+    t_max: f32,
+    any_hit: bool,
+) -> [Hit<f32>; WIDTH] {
+    let query = Query {
+        rays,
+        active,
+        t_max,
+    };
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx512f") {
+        // SAFETY: the CPU has AVX-512F (and so AVX2), checked just above.
+        return unsafe {
+            if any_hit {
+                traverse_avx512::<true>(scene, query)
+            } else {
+                traverse_avx512::<false>(scene, query)
+            }
+        };
+    }
+    #[cfg(target_arch = "x86_64")]
+    if std::arch::is_x86_feature_detected!("avx2") {
+        // SAFETY: the CPU has AVX2, checked just above.
+        return unsafe {
+            if any_hit {
+                traverse_avx2::<true>(scene, query)
+            } else {
+                traverse_avx2::<false>(scene, query)
+            }
+        };
+    }
+    if any_hit {
+        traverse_with::<SSE, true>(scene, query)
+    } else {
+        traverse_with::<SSE, false>(scene, query)
+    }
+}
+
+/// `traverse_with`'s instruction sets, least first.
+pub(super) const SSE: u8 = 0;
+pub(super) const AVX2: u8 = 1;
+pub(super) const AVX512: u8 = 2;
+
+/// `traverse_with` compiled for AVX2, so its box tests inline.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+pub(super) fn traverse_avx2<const ANY_HIT: bool>(
+    scene: &CpuScene<f32>,
+    query: Query,
+) -> [Hit<f32>; WIDTH] {
+    traverse_with::<AVX2, ANY_HIT>(scene, query)
+}
+
+/// `traverse_with` compiled for AVX-512: its box tests take sixteen rays a
+/// register, its leaf tests stay AVX2's octets.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f")]
+pub(super) fn traverse_avx512<const ANY_HIT: bool>(
+    scene: &CpuScene<f32>,
+    query: Query,
+) -> [Hit<f32>; WIDTH] {
+    traverse_with::<AVX512, ANY_HIT>(scene, query)
+}
+
+/// `traverse`, its box tests 8 rays at a time with AVX2 when `SIMD` is
+/// `AVX2` and 16 with AVX-512 when it is `AVX512` (only ever so inside
+/// `traverse_avx2` and `traverse_avx512`), for blockers when `ANY_HIT`.
+///
+/// An any-hit ray's limit stays `t_max` until it is blocked and leaves, so
+/// no box it passed can later lie beyond its limit, and whether it is
+/// blocked does not depend on the order it meets leaves in: there the
+/// entry t that order and dropping need is not computed.
+#[inline(always)]
+pub(super) fn traverse_with<const SIMD: u8, const ANY_HIT: bool>(
+    scene: &CpuScene<f32>,
+    query: Query,
+) -> [Hit<f32>; WIDTH] {
+    let Query {
+        rays,
+        active,
+        t_max,
+    } = query;
+    let mut best = [Hit {
+        t: t_max,
+        prim: NO_HIT,
+        b1: 0.0,
+        b2: 0.0,
+    }; WIDTH];
+    if scene.wide.nodes.is_empty() || active == 0 {
+        return best;
+    }
+    let soa = Soa::new(rays);
+    // Where `hit_leaf` tests a leaf's triangles as one SIMD block (a packet
+    // never skips surfaces); with `applies`, always.
+    let simd_leaves = scene.methods == Methods::Robust && !scene.motion_blur;
+    let mut best_t = Lanes([t_max; WIDTH]);
+    let scale = Vec4::splat(f32::BOX_T_SCALE);
+    // Rays still looking: an any-hit ray leaves once blocked.
+    let mut live = active;
+    // Uninitialised, as `trace::traverse`'s: clearing it per packet showed
+    // in profiles.
+    let mut stack = [std::mem::MaybeUninit::<Entry>::uninit(); wide::STACK];
+    stack[0] = std::mem::MaybeUninit::new((0, active, 0.0));
+    let mut len = 1;
+    let mut kids = Children::NONE;
+    while len > 0 {
+        len -= 1;
+        // SAFETY: stack[..len + 1] were all written before `len` grew past them.
+        let (index, entered, t_entry) = unsafe { stack[len].assume_init() };
+        let mask = entered & live;
+        if mask == 0 {
+            continue;
+        }
+        // Dropped unopened when no ray that entered it could find a hit
+        // nearer than its entry any more (the box test they would fail).
+        if !ANY_HIT {
+            let farthest = (0..QUADS)
+                .map(|h| {
+                    Vec4::select(
+                        LANES[(mask >> (4 * h) & 15) as usize],
+                        best_t.quad(h),
+                        Vec4::NEG_INFINITY,
+                    )
+                    .max_element()
+                })
+                .fold(f32::NEG_INFINITY, f32::max);
+            if t_entry > farthest * f32::BOX_T_SCALE {
+                continue;
+            }
+        }
+        // Few rays left: each walks the subtree alone (`trace::traverse`'s
+        // walk from this node, its own hit so far as its limit), without
+        // the packet's bookkeeping.
+        if mask.count_ones() <= HAND_OFF {
+            let mut each = mask;
+            while each != 0 {
+                let r = each.trailing_zeros() as usize;
+                each &= each - 1;
+                crate::cpu::trace::traverse_below(scene, &rays[r], index, &mut best[r], ANY_HIT);
+                best_t.0[r] = best[r].t;
+                if ANY_HIT && best[r].prim != NO_HIT {
+                    live &= !(1 << r);
+                }
+            }
+            if live == 0 {
+                return best;
+            }
+            continue;
+        }
+        let node = &scene.wide.nodes[index as usize];
+        #[cfg(target_arch = "x86_64")]
+        // SAFETY: SIMD is AVX512 only in `traverse_avx512`, which runs only
+        // where the CPU has AVX-512F, and AVX2 only in `traverse_avx2`,
+        // which runs only where it has AVX2.
+        if SIMD == AVX512 {
+            unsafe { children_avx512::<ANY_HIT>(node, &soa, mask, &best_t, &mut kids) }
+        } else if SIMD == AVX2 {
+            unsafe { children_avx2::<ANY_HIT>(node, &soa, mask, &best_t, &mut kids) }
+        } else {
+            children_sse::<ANY_HIT>(node, &soa, mask, &best_t, &mut kids)
+        };
+        #[cfg(not(target_arch = "x86_64"))]
+        children_sse::<ANY_HIT>(node, &soa, mask, &best_t, &mut kids);
+        let Children {
+            hits,
+            ref near,
+            nearest,
+        } = kids;
+        // Hit lanes nearest first (by their nearest ray, then lane; in
+        // lane order for any-hit rays, whose entries are not computed).
+        let mut order = [0usize; 4];
+        let mut n = 0;
+        for lane in 0..4 {
+            if hits[lane] == 0 {
+                continue;
+            }
+            let mut i = n;
+            while i > 0 && nearest[order[i - 1]] > nearest[lane] {
+                order[i] = order[i - 1];
+                i -= 1;
+            }
+            order[i] = lane;
+            n += 1;
+        }
+        // Nodes onto the stack first, farthest first, so the nearest is
+        // next, and each starts loading with its own leaf blocks: the next
+        // node arrives while this one's leaves are tested, and its leaves
+        // with it (this node's were started when it was pushed). The
+        // leaves cannot see the stack, so the order of work is as if they
+        // came first.
+        for &lane in order[..n].iter().rev() {
+            let child = node.child[lane];
+            if child & wide::LEAF == 0 {
+                // Indexed with a bounds check: `wide::STACK` bounds the depth.
+                stack[len] = std::mem::MaybeUninit::new((child, hits[lane], nearest[lane]));
+                len += 1;
+                prefetch(std::slice::from_ref(&scene.wide.nodes[child as usize]));
+                prefetch(&scene.wide.leaves[node.leaf_run(lane)]);
+            }
+        }
+        // Leaves are tested as they come, nearest first.
+        for &lane in &order[..n] {
+            let child = node.child[lane];
+            if child & wide::LEAF == 0 {
+                continue;
+            }
+            let index = (child & !wide::LEAF) as usize;
+            let leaf = &scene.wide.leaves[index];
+            // The rays that reached it and have not found a hit nearer than
+            // their entry since.
+            let mut rays_in = hits[lane] & live;
+            if !ANY_HIT {
+                for h in 0..QUADS {
+                    let late = near[lane].quad(h).cmpgt(best_t.quad(h) * scale).bitmask();
+                    rays_in &= !(late << (4 * h));
+                }
+            }
+            if !simd_leaves {
+                // As a single ray's, one ray at a time.
+                while rays_in != 0 {
+                    let r = rays_in.trailing_zeros() as usize;
+                    rays_in &= rays_in - 1;
+                    let done = hit_leaf(scene, &rays[r], index, &mut best[r], ANY_HIT, &[], 0.0);
+                    best_t.0[r] = best[r].t;
+                    if done {
+                        live &= !(1 << r);
+                    }
+                }
+            } else if leaf.simd() {
+                // `hit_leaf`'s own first branch, inlined here: across an
+                // octet's rays where they share an axis order and enough
+                // of them came, else ray by ray.
+                #[cfg(target_arch = "x86_64")]
+                if SIMD >= AVX2 {
+                    for (g, k) in soa.k.iter().enumerate() {
+                        let m8 = rays_in >> (8 * g) & 255;
+                        let Some(k) = *k else { continue };
+                        if m8.count_ones() < OCTET_MIN_RAYS {
+                            continue;
+                        }
+                        rays_in &= !(m8 << (8 * g));
+                        // SAFETY: SIMD is AVX2 or more only in
+                        // `traverse_avx2` and `traverse_avx512`, which run
+                        // only where the CPU has AVX2 (AVX-512F implies it).
+                        let found = unsafe {
+                            hit_block_octet(leaf, &soa, k, g, m8, &mut best, &mut best_t)
+                        };
+                        if ANY_HIT {
+                            live &= !found;
+                        }
+                    }
+                }
+                while rays_in != 0 {
+                    let r = rays_in.trailing_zeros() as usize;
+                    rays_in &= rays_in - 1;
+                    if let Some((k, t, b1, b2)) = crate::cpu::simd::hit_block_f32(
+                        rays[r].origin,
+                        rays[r].k,
+                        rays[r].shear,
+                        leaf,
+                        best[r].t,
+                    ) {
+                        let prim = leaf.prims[k];
+                        best[r] = Hit { t, prim, b1, b2 };
+                        best_t.0[r] = t;
+                        if ANY_HIT {
+                            live &= !(1 << r);
+                        }
+                    }
+                }
+            } else {
+                // `hit_leaf`'s loop over the primitives, robust, taken
+                // primitive by primitive for all the rays (each ray still
+                // meets them in order): spheres four rays at a time.
+                for &prim in &scene.prim_refs[scene.wide.spans[index].range()] {
+                    if rays_in == 0 {
+                        break;
+                    }
+                    let index = (prim & !SPHERE_BIT) as usize;
+                    if prim & SPHERE_BIT != 0 {
+                        let t = hit_sphere_rays(&soa, &scene.spheres[index], &best_t);
+                        let mut hit = rays_in;
+                        while hit != 0 {
+                            let r = hit.trailing_zeros() as usize;
+                            hit &= hit - 1;
+                            if t.0[r] < best[r].t {
+                                best[r] = Hit {
+                                    t: t.0[r],
+                                    prim,
+                                    b1: 0.0,
+                                    b2: 0.0,
+                                };
+                                best_t.0[r] = t.0[r];
+                                if ANY_HIT {
+                                    live &= !(1 << r);
+                                    rays_in &= !(1 << r);
+                                }
+                            }
+                        }
+                    } else {
+                        let tri = &scene.triangles[index];
+                        let mut each = rays_in;
+                        while each != 0 {
+                            let r = each.trailing_zeros() as usize;
+                            each &= each - 1;
+                            let (t, b1, b2) = hit_triangle(&rays[r], tri, best[r].t);
+                            if t < best[r].t {
+                                best[r] = Hit { t, prim, b1, b2 };
+                                best_t.0[r] = t;
+                                if ANY_HIT {
+                                    live &= !(1 << r);
+                                    rays_in &= !(1 << r);
+                                }
+                            }
+                        }
+                    }
+                }
+            }
+            if live == 0 {
+                return best;
+            }
+        }
+    }
+    best
+}

@@ -1,0 +1,271 @@
+//! The scene as the CPU reference traces it: f32 or f64 geometry built once
+//! from the scene and its tree, lights, materials, and what a hit records.
+
+use crate::bvh::wide::{self, WideBvh};
+use crate::bvh::Bvh;
+use crate::camera::Camera;
+use crate::cpu::options::CpuOptions;
+use crate::cpu::real::Real;
+use crate::features::Features;
+use crate::layout::{LIGHT_POINT, LIGHT_RECT, LIGHT_SPHERE, SPHERE_BIT};
+use crate::methods::Methods;
+use crate::scene::{Effects, LightShape, Scene};
+
+pub const NO_HIT: u32 = u32::MAX;
+
+#[derive(Clone, Copy, Debug)]
+pub struct Sphere<R: Real> {
+    pub center: R::V3,
+    pub radius: R,
+    pub kd: R::V3,
+    pub ks: R::V3,
+    pub shininess: R,
+    pub velocity: R::V3,
+}
+
+/// A triangle corner's shading normal and material (an index into
+/// `CpuScene::materials`, as the scene keeps them: a material per corner
+/// would be most of a big scene's memory here too).
+#[derive(Clone, Copy, Debug)]
+pub struct VertexShading<R: Real> {
+    pub normal: R::V3,
+    pub material: u32,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct SurfaceMaterial<R: Real> {
+    pub kd: R::V3,
+    pub ks: R::V3,
+    pub shininess: R,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct Light<R: Real> {
+    pub position: R::V3,
+    pub color: R::V3,
+    pub kind: u32,
+    pub radius: R,
+    pub edge_u: R::V3,
+    pub edge_v: R::V3,
+    pub velocity: R::V3,
+}
+
+/// The scene as the CPU reference reads it: the shader's buffers, in `R`.
+/// The BVH is shared with the GPU (f32 boxes, rounded outward). The
+/// per-primitive arrays and the wide tree are a `CpuGeometry`'s, built
+/// once per prepared scene (`render::Renderer`), as the GPU packs its
+/// buffers once.
+pub struct CpuScene<'a, R: Real> {
+    pub spheres: &'a [Sphere<R>],
+    pub triangles: &'a [[R::V3; 3]],
+    pub triangle_velocity: &'a [R::V3],
+    pub shading: &'a [[VertexShading<R>; 3]],
+    pub materials: &'a [SurfaceMaterial<R>],
+    pub lights: Vec<Light<R>>,
+    /// The BVH collapsed to four children a node, with its leaves'
+    /// triangles in blocks for the SIMD test (`wide`).
+    pub wide: &'a WideBvh,
+    pub prim_refs: &'a [u32],
+    /// Per light, the surfaces through it (`lights_on_surfaces`).
+    pub surfaces_at_lights: &'a [Vec<u32>],
+    pub ambient: R::V3,
+    pub background: R::V3,
+    pub half_extent: [R; 2],
+    pub size: [u32; 2],
+    /// The shader's `ROBUST` override.
+    pub methods: Methods,
+    /// The shader's `MOTION_BLUR` override.
+    pub motion_blur: bool,
+    pub seed: u32,
+    pub spp: u32,
+    pub shadow_samples: u32,
+    pub reflect_depth: u32,
+    /// Seconds the shutter is open (0 without motion blur).
+    pub shutter: R,
+}
+
+/// What of a `CpuScene` grows with the scene: its primitives in `R` and the
+/// wide tree. It depends on the scene, its BVH and whether the scene moves,
+/// not on the camera, seed or samples, so one serves every render of a
+/// prepared scene (and every pass of a progressive one).
+#[derive(Clone)]
+pub struct CpuGeometry<R: Real> {
+    spheres: Vec<Sphere<R>>,
+    triangles: Vec<[R::V3; 3]>,
+    triangle_velocity: Vec<R::V3>,
+    shading: Vec<[VertexShading<R>; 3]>,
+    materials: Vec<SurfaceMaterial<R>>,
+    wide: WideBvh,
+    motion_blur: bool,
+}
+
+impl<R: Real> CpuGeometry<R> {
+    /// `scene` in view space and the BVH built for it with `effects`.
+    pub fn new(scene: &Scene, bvh: &Bvh, effects: &Effects) -> Self {
+        // f64 -> R once, as the GPU packing does for f32, in the BVH's
+        // render space.
+        let scene = &*scene.in_render_space(bvh.scale);
+        let v = R::v3_from_f64;
+        let features = Features::of(scene, effects);
+        // The f32 corners are the f32 path's own (`v` rounds the same way);
+        // none where `R` tests leaves one triangle at a time.
+        let corners = |r: u32| {
+            let t = scene
+                .triangles
+                .get(r as usize)
+                .filter(|_| R::SIMD_LEAVES && r & SPHERE_BIT == 0)?;
+            Some(t.vertices.map(|x| x.position.as_vec3().to_array()))
+        };
+        // The tree on one thread, the primitives on the others: at 8M
+        // triangles each is seconds, and a render waits for both.
+        use rayon::prelude::*;
+        let (wide, (triangles, shading)) = rayon::join(
+            || wide::collapse(bvh, corners),
+            || {
+                rayon::join(
+                    || {
+                        scene
+                            .triangles
+                            .par_iter()
+                            .map(|t| t.vertices.map(|x| v(x.position)))
+                            .collect()
+                    },
+                    || {
+                        scene
+                            .triangles
+                            .par_iter()
+                            .map(|t| {
+                                t.vertices.map(|x| VertexShading {
+                                    normal: v(x.normal),
+                                    material: x.material,
+                                })
+                            })
+                            .collect()
+                    },
+                )
+            },
+        );
+        CpuGeometry {
+            spheres: scene
+                .spheres
+                .iter()
+                .map(|s| Sphere {
+                    center: v(s.center),
+                    radius: R::from_f64(s.radius),
+                    kd: v(s.material.kd),
+                    ks: v(s.material.ks),
+                    shininess: R::from_f64(s.material.shininess),
+                    velocity: v(s.velocity),
+                })
+                .collect(),
+            triangles,
+            // Read only with motion blur (`triangle_at`).
+            triangle_velocity: if features.motion_blur {
+                scene.triangles.iter().map(|t| v(t.velocity)).collect()
+            } else {
+                Vec::new()
+            },
+            shading,
+            materials: scene
+                .materials
+                .iter()
+                .map(|m| SurfaceMaterial {
+                    kd: v(m.kd),
+                    ks: v(m.ks),
+                    shininess: R::from_f64(m.shininess),
+                })
+                .collect(),
+            wide,
+            motion_blur: features.motion_blur,
+        }
+    }
+}
+
+impl<'a, R: Real> CpuScene<'a, R> {
+    /// Over `geometry`, which `CpuGeometry::new` built for this scene and BVH.
+    pub fn new(
+        scene: &Scene,
+        bvh: &'a Bvh,
+        geometry: &'a CpuGeometry<R>,
+        camera: &Camera,
+        options: &CpuOptions,
+    ) -> Self {
+        let v = R::v3_from_f64;
+        let effects = &options.effects;
+        let g = geometry;
+        let motion_blur = g.motion_blur;
+        CpuScene {
+            spheres: &g.spheres,
+            triangles: &g.triangles,
+            triangle_velocity: &g.triangle_velocity,
+            shading: &g.shading,
+            materials: &g.materials,
+            wide: &g.wide,
+            // Lights and ambient only: the rest of the scene is in
+            // `geometry`, already in render space.
+            lights: scene
+                .lights
+                .iter()
+                .map(|l| l.scaled(bvh.scale))
+                .map(|l| {
+                    let zero = R::v3(R::ZERO, R::ZERO, R::ZERO);
+                    let (kind, radius, edge_u, edge_v) = match l.shape {
+                        LightShape::Point => (LIGHT_POINT, R::ZERO, zero, zero),
+                        LightShape::Sphere { radius } => {
+                            (LIGHT_SPHERE, R::from_f64(radius), zero, zero)
+                        }
+                        LightShape::Rect { edge_u, edge_v } => {
+                            (LIGHT_RECT, R::ZERO, v(edge_u), v(edge_v))
+                        }
+                    };
+                    Light {
+                        position: v(l.position),
+                        color: v(l.color),
+                        kind,
+                        radius,
+                        edge_u,
+                        edge_v,
+                        velocity: v(l.velocity),
+                    }
+                })
+                .collect(),
+            surfaces_at_lights: &bvh.surfaces_at_lights,
+            prim_refs: &bvh.prim_refs,
+            ambient: v(scene.ambient),
+            background: R::v3_from_f32(options.background),
+            half_extent: camera.half_extent.map(R::from_f64),
+            size: [camera.width, camera.height],
+            methods: options.methods,
+            motion_blur,
+            seed: effects.seed,
+            spp: effects.spp,
+            shadow_samples: effects.shadow_samples,
+            reflect_depth: effects.reflect_depth,
+            // Rounded to f32 first, as the GPU's uniform holds it.
+            shutter: if motion_blur {
+                R::from_f64(f64::from(effects.shutter_seconds() as f32))
+            } else {
+                R::ZERO
+            },
+        }
+    }
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct Hit<R: Real> {
+    pub t: R,
+    pub prim: u32,
+    pub b1: R,
+    pub b2: R,
+}
+
+#[derive(Clone, Copy, Debug)]
+pub struct SurfacePoint<R: Real> {
+    pub p: R::V3,
+    pub n: R::V3,
+    pub ng: R::V3,
+    pub scale: R::V3,
+    pub kd: R::V3,
+    pub ks: R::V3,
+    pub shininess: R,
+}

@@ -1,0 +1,167 @@
+//! What a GPU render is asked to do: its options, the job (an image, some
+//! rectangles of it, or one pixel's path), and the tiles it is cut into.
+
+use std::time::Duration;
+
+use crate::features::Features;
+use crate::gpu::pipeline::Kernel;
+use crate::layout::WORKGROUP_SIZE;
+use crate::methods::Methods;
+use crate::scene::Effects;
+
+/// Tiles in flight at once.
+pub(super) const SLOTS: usize = 2;
+/// Output texels are `vec4<f32>`.
+pub(super) const TEXEL_BYTES: u64 = 16;
+/// Binding indices (the shader's header lists them).
+pub(super) const B_FRAME: usize = 0;
+pub(super) const B_TILE: usize = 1;
+pub(super) const B_OUTPUT: usize = 8;
+pub(super) const B_STATE: usize = 10;
+pub(super) const B_STATUS: usize = 11;
+pub(super) const B_MATERIALS: usize = 12;
+pub(super) const B_SKIPS: usize = 13;
+/// `Timings` count: tiles whose one-pass try left pixels unfinished and
+/// that were redone with the resumable shader (`TileWork::resumable`).
+pub const RESUMABLE_REDOS: &str = "resumable redos";
+
+/// A cut tile is redone with its budget divided by this.
+pub(super) const BUDGET_BACKOFF: u32 = 8;
+
+pub use crate::gpu::driver::DEFAULT_PASS_BUDGET;
+
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct GpuRenderOptions {
+    /// Tile edge in pixels; bounds the pixels in one submit.
+    pub tile_size: u32,
+    /// Loop iterations one shader invocation may run per pass; bounds the
+    /// work per pixel in one submit.
+    pub pass_budget: u32,
+    /// Longest wait for one pass before giving up with an error.
+    pub pass_timeout: Duration,
+    /// Intersection and offset methods (robust unless measuring them).
+    pub methods: Methods,
+    /// Sample counts, reflection depth, shutter and seed.
+    pub effects: Effects,
+    /// What the shader is specialised for: `Features::of` the scene, or
+    /// `Features::ALL` for the generic shader.
+    pub features: Features,
+    /// A cap on every storage binding below the device's own
+    /// `maxStorageBufferRange` (tests use it to reach the limit cheaply).
+    pub storage_limit: Option<u64>,
+    /// Where the device is a CPU, read the hot lists through their device
+    /// addresses (`Lists::Address`, where the driver gathers those loads)
+    /// or, where they fit, from uniform copies (`Lists::Uniform`); false:
+    /// always the storage lists, as on a GPU.
+    pub uniform_lists: bool,
+    /// A tile's first pass without pixel state (`DriverProfile::one_pass_first`).
+    pub one_pass_first: bool,
+}
+
+impl Default for GpuRenderOptions {
+    fn default() -> Self {
+        GpuRenderOptions {
+            // The driver profile's safe default; renders through `Renderer`
+            // take the device's (`DriverProfile::tile_size`).
+            tile_size: crate::gpu::driver::SAFE_TILE,
+            pass_budget: DEFAULT_PASS_BUDGET,
+            // A pass is bounded (pass_budget x tile pixels): on lavapipe,
+            // 2 cores, a full-budget 512^2 pass takes about 10 s, so 120 s
+            // leaves room for a machine that is busy with other work.
+            pass_timeout: Duration::from_secs(120),
+            methods: Methods::Robust,
+            effects: Effects::default(),
+            features: Features::ALL,
+            storage_limit: None,
+            uniform_lists: true,
+            one_pass_first: true,
+        }
+    }
+}
+
+/// Most lights a `--pixel` path record lists (a 1 MiB output buffer).
+pub(super) const PATH_MAX_LIGHTS: u32 = 21_000;
+
+/// What one run of the tile loop computes.
+#[derive(Clone, Copy, Debug)]
+pub(super) enum Job {
+    /// `Kernel::Render` or `Kernel::ProbeTile` over the whole image.
+    Image(Kernel),
+    /// `Kernel::Render` over the rectangles `run` is given (none larger
+    /// than a tile).
+    Rects,
+    /// The path record of one pixel.
+    Pixel([u32; 2]),
+}
+
+#[derive(Clone, Copy, Debug)]
+pub(super) struct TileRect {
+    pub(super) origin: [u32; 2],
+    pub(super) size: [u32; 2],
+}
+
+/// A tile's progress through its passes.
+#[derive(Clone, Copy, Debug)]
+pub(super) struct TileWork {
+    pub(super) rect: TileRect,
+    /// Passes submitted so far (the one in flight included).
+    pub(super) pass: u32,
+    pub(super) budget: u32,
+    /// Pixels whose work is not finished, as of the last pass read.
+    pub(super) left: u32,
+    /// Closest-hit and shadow rays the tile's passes cast so far.
+    pub(super) rays: [u64; 2],
+    /// Whether its passes keep the pixels' state. A render's tiles start
+    /// without (`ONE_PASS`): most finish in one pass, and the state's
+    /// loads and stores cost Mesa 22.3 up to an eighth of a render's
+    /// instructions (test1) even where no pixel pauses. A tile that has pixels left after that
+    /// pass is redone from its start with the resumable shader (same
+    /// image: the passes are deterministic), and the render's later tiles
+    /// start resumable, as do the next render's
+    /// (`GpuRenderer::needed_passes`).
+    pub(super) resumable: bool,
+}
+
+/// Copies a tile's texels (row-major, `rect.size[0]` wide) into their place
+/// in an image `width` pixels wide, converting each with `f`.
+pub(super) fn place_tile<T>(
+    rect: TileRect,
+    texels: &[[f32; 4]],
+    width: usize,
+    image: &mut [T],
+    f: impl Fn(&[f32; 4]) -> T,
+) {
+    let [x0, y0] = rect.origin.map(|v| v as usize);
+    let w = rect.size[0] as usize;
+    for (row, src) in texels.chunks_exact(w).enumerate() {
+        let start = (y0 + row) * width + x0;
+        for (dst, t) in image[start..start + w].iter_mut().zip(src) {
+            *dst = f(t);
+        }
+    }
+}
+
+/// Texels of the largest tile of a `width` x `height` image rendered with
+/// `--tile tile_size`: what each slot's tile buffers hold.
+pub fn tile_texels(tile_size: u32, width: u32, height: u32) -> u64 {
+    let edge = tile_edge(tile_size);
+    u64::from(edge.min(width)) * u64::from(edge.min(height))
+}
+
+/// The tile edge a `tile_size` gives: at least one workgroup.
+pub(super) fn tile_edge(tile_size: u32) -> u32 {
+    tile_size.max(WORKGROUP_SIZE)
+}
+
+pub(super) fn tiles(width: u32, height: u32, edge: u32) -> Vec<TileRect> {
+    let mut out = Vec::new();
+    for y in (0..height).step_by(edge as usize) {
+        for x in (0..width).step_by(edge as usize) {
+            out.push(TileRect {
+                origin: [x, y],
+                size: [edge.min(width - x), edge.min(height - y)],
+            });
+        }
+    }
+    out
+}

@@ -1,0 +1,299 @@
+//! Rendering a packed scene on the GPU, tile by tile and pass by pass:
+//! `job` (what is asked), `plan` (where each list goes), `resources` (what
+//! stays on the device), `passes` (the loop), and here the renderer.
+//!
+//! A tile's work is split into passes of bounded size (the shader's
+//! `render_tile` runs each pixel's work as a resumable state machine with a
+//! budget of loop iterations per pass), so no invocation runs into a driver's
+//! loop limit and no submission runs long enough to trip a watchdog, whatever
+//! the scene asks for. Each pass is one submit with its own fence; after it the
+//! host reads the pass's status: pixels left (another pass), or pixels cut
+//! short (the tile is redone with a smaller budget, or the render fails naming
+//! the pixel). A tile's first pass runs a shader that keeps no pixel state;
+//! a tile with pixels left after it is redone with the resumable one
+//! (`TileWork::resumable`). Two tile slots alternate, so the GPU works on
+//! one while the host reads the other back. A tile is dispatched into a
+//! device-local buffer and copied into a host-visible one, so shaders never
+//! write across PCIe.
+//!
+//! Everything a render needs on the device (command buffers, descriptor sets,
+//! fences, scene, tile and staging buffers) is created once per renderer and
+//! reused by every tile, pass and frame; a buffer is recreated only when a
+//! scene needs a larger one, so memory stays flat over an animation.
+
+mod job;
+mod passes;
+mod plan;
+mod resources;
+
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Mutex;
+use std::time::Duration;
+
+use job::{place_tile, tile_edge, tiles, Job, TileRect};
+pub use job::{tile_texels, GpuRenderOptions, DEFAULT_PASS_BUDGET, RESUMABLE_REDOS};
+use passes::Work;
+use plan::{capped, key, plan_lists, scene_uploads};
+use resources::{Gpu, Resources};
+
+use super::bindings::Lists;
+use super::context::Context;
+use super::error::GpuError;
+use super::pipeline::{Kernel, TracePipeline};
+use crate::camera::Camera;
+use crate::framebuffer::Framebuffer;
+use crate::layout::GpuScene;
+use crate::probe::{PathRecord, ProbeImage};
+use crate::timing::Timings;
+
+/// A device with the trace pipeline built; renders any number of scenes.
+pub struct GpuRenderer {
+    ctx: Context,
+    pipeline: TracePipeline,
+    /// Reused by every render; `None` until the first.
+    resources: Mutex<Option<Resources>>,
+    /// Whether the last render had a tile that needed more than one pass:
+    /// the next starts its tiles resumable (`TileWork::resumable`), so a
+    /// run of renders of such work (progressive passes, animation frames)
+    /// redoes tiles only in its first. A wrong guess costs time, never
+    /// the image.
+    needed_passes: AtomicBool,
+}
+
+impl GpuRenderer {
+    pub fn new(ctx: &Context) -> Result<GpuRenderer, GpuError> {
+        let pipeline = TracePipeline::new(ctx)?;
+        Ok(GpuRenderer {
+            ctx: ctx.clone(),
+            pipeline,
+            resources: Mutex::new(None),
+            needed_passes: AtomicBool::new(false),
+        })
+    }
+
+    fn gpu(&self) -> Gpu<'_> {
+        Gpu {
+            shared: &self.ctx.shared,
+            pipeline: &self.pipeline,
+        }
+    }
+
+    /// Runs `work` on this renderer's resources (created on first use),
+    /// starting resumable if the last render needed passes.
+    fn run(
+        &self,
+        work: Work,
+        progress: &(dyn Fn(u64, u64) + Sync),
+        sink: &mut dyn FnMut(TileRect, &[[f32; 4]]),
+    ) -> Result<Timings, GpuError> {
+        let mut guard = self.resources.lock().unwrap_or_else(|e| e.into_inner());
+        if guard.is_none() {
+            *guard = Some(self.gpu().create_resources()?);
+        }
+        let res = guard.as_mut().expect("just created");
+        let work = Work {
+            start_resumable: self.needed_passes.load(Ordering::Relaxed),
+            ..work
+        };
+        let (timings, needed_passes) = self.gpu().run(&work, res, progress, sink)?;
+        if let Some(needed) = needed_passes {
+            self.needed_passes.store(needed, Ordering::Relaxed);
+        }
+        Ok(timings)
+    }
+
+    /// Time to build the pipeline `options` call for from scratch (no
+    /// cache), with the plain lists.
+    pub fn measure_build(
+        &self,
+        options: &GpuRenderOptions,
+        kernel: Kernel,
+    ) -> Result<Duration, GpuError> {
+        self.pipeline.measure_build(key(
+            options,
+            kernel,
+            Lists::Plain,
+            &GpuScene::default(),
+            &[],
+            false,
+        ))
+    }
+
+    /// Builds (or finds in the cache) the pipeline a render of `scene` with
+    /// `options` starts with (resumable if the last render needed passes:
+    /// `TileWork::resumable`); returns the build time, zero when it was
+    /// cached.
+    pub fn prepare(
+        &self,
+        scene: &GpuScene,
+        options: &GpuRenderOptions,
+        kernel: Kernel,
+    ) -> Result<Duration, GpuError> {
+        let limits = capped(self.ctx.shared.limits, options.storage_limit);
+        // A plan that fails fails the render too, which then says why.
+        let uploads = scene_uploads(scene);
+        let lists = plan_lists(&uploads, &limits, self.gpu().forms(options))
+            .map_or(Lists::Plain, |(_, lists)| lists);
+        Ok(self
+            .pipeline
+            .get(key(
+                options,
+                kernel,
+                lists,
+                scene,
+                &uploads,
+                self.needed_passes.load(Ordering::Relaxed) || !options.one_pass_first,
+            ))?
+            .1)
+    }
+
+    /// Renders `scene` as seen by `camera`. `progress(pixels_done,
+    /// pixels_total)` is called after every pass: a pixel is done when its
+    /// last pass has run.
+    pub fn render(
+        &self,
+        scene: &GpuScene,
+        camera: &Camera,
+        background: [f32; 3],
+        options: &GpuRenderOptions,
+        progress: &(dyn Fn(u64, u64) + Sync),
+    ) -> Result<(Framebuffer, Timings), GpuError> {
+        let job = Job::Image(Kernel::Render);
+        self.render_job(scene, camera, background, options, job, &[], progress)
+    }
+
+    /// Renders only the rectangles `rects` (x, y, width, height) of the
+    /// image, each as its own tile (split where larger than one); the rest
+    /// of the framebuffer is left 0. For progressive renders that spend
+    /// passes where the noise is.
+    pub fn render_rects(
+        &self,
+        scene: &GpuScene,
+        camera: &Camera,
+        background: [f32; 3],
+        options: &GpuRenderOptions,
+        rects: &[[u32; 4]],
+        progress: &(dyn Fn(u64, u64) + Sync),
+    ) -> Result<(Framebuffer, Timings), GpuError> {
+        let edge = tile_edge(options.tile_size);
+        let mut parts = Vec::new();
+        for &[x, y, w, h] in rects {
+            let w = w.min(camera.width.saturating_sub(x));
+            let h = h.min(camera.height.saturating_sub(y));
+            for t in tiles(w, h, edge) {
+                parts.push(TileRect {
+                    origin: [x + t.origin[0], y + t.origin[1]],
+                    size: t.size,
+                });
+            }
+        }
+        self.render_job(
+            scene,
+            camera,
+            background,
+            options,
+            Job::Rects,
+            &parts,
+            progress,
+        )
+    }
+
+    /// The colour image of a `Kernel::Render` job (`rects` for `Job::Rects`).
+    #[allow(clippy::too_many_arguments)]
+    fn render_job(
+        &self,
+        scene: &GpuScene,
+        camera: &Camera,
+        background: [f32; 3],
+        options: &GpuRenderOptions,
+        job: Job,
+        rects: &[TileRect],
+        progress: &(dyn Fn(u64, u64) + Sync),
+    ) -> Result<(Framebuffer, Timings), GpuError> {
+        let width = camera.width as usize;
+        let mut pixels = vec![[0.0f32; 3]; width * camera.height as usize];
+        let timings = self.run(
+            Work {
+                scene,
+                camera,
+                background,
+                options,
+                job,
+                rects,
+                start_resumable: false,
+            },
+            progress,
+            &mut |rect, texels| {
+                place_tile(rect, texels, width, &mut pixels, |t| [t[0], t[1], t[2]])
+            },
+        )?;
+        let fb = Framebuffer {
+            width: camera.width,
+            height: camera.height,
+            pixels,
+        };
+        Ok((fb, timings))
+    }
+
+    /// Each pixel's primary hit and shadow verdicts (the shader's `probe_tile`).
+    pub fn probe(
+        &self,
+        scene: &GpuScene,
+        camera: &Camera,
+        options: &GpuRenderOptions,
+    ) -> Result<ProbeImage, GpuError> {
+        let job = Job::Image(Kernel::ProbeTile);
+        let width = camera.width as usize;
+        let mut image = vec![[0.0f32; 4]; width * camera.height as usize];
+        self.run(
+            Work {
+                scene,
+                camera,
+                background: [0.0; 3],
+                options,
+                job,
+                rects: &[],
+                start_resumable: false,
+            },
+            &|_, _| {},
+            &mut |rect, texels| place_tile(rect, texels, width, &mut image, |t| *t),
+        )?;
+        let mut probe = ProbeImage::from_texels(camera.width, camera.height, &image);
+        for p in &mut probe.pixels {
+            p.prim = scene.scene_prim(p.prim);
+        }
+        Ok(probe)
+    }
+
+    /// The path of pixel (x, y) (the shader's `probe_pixel`).
+    pub fn pixel_path(
+        &self,
+        scene: &GpuScene,
+        camera: &Camera,
+        background: [f32; 3],
+        pixel: [u32; 2],
+        options: &GpuRenderOptions,
+    ) -> Result<PathRecord, GpuError> {
+        let job = Job::Pixel(pixel);
+        let mut record = Vec::new();
+        self.run(
+            Work {
+                scene,
+                camera,
+                background,
+                options,
+                job,
+                rects: &[],
+                start_resumable: false,
+            },
+            &|_, _| {},
+            &mut |_, texels| record = texels.to_vec(),
+        )?;
+        let mut path = PathRecord::from_texels(&record);
+        path.prim = scene.scene_prim(path.prim);
+        for light in &mut path.lights {
+            light.blocker = scene.scene_prim(light.blocker);
+        }
+        Ok(path)
+    }
+}

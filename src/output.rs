@@ -1,0 +1,24 @@
+//! What a render gives back: the image, and how it was made.
+
+use crate::framebuffer::Framebuffer;
+use crate::memory::MemoryNeed;
+use crate::timing::Timings;
+
+/// A finished render (or pass) and what it took.
+pub struct RenderOutput {
+    pub framebuffer: Framebuffer,
+    pub timings: Timings,
+    /// What rendered it, e.g. "GPU: llvmpipe (LLVM 15.0.6, 256 bits)" or "CPU reference (f32)".
+    pub renderer: String,
+    /// Something the user should know, e.g. why `auto` fell back to the CPU.
+    pub note: Option<String>,
+    /// Vulkan validation warnings and errors seen (GPU renders with validation on).
+    pub validation_messages: u32,
+    /// Host memory the render needed beyond the scene and its BVH (checked
+    /// against what was available before it started).
+    pub memory: MemoryNeed,
+    /// The tree it traversed.
+    pub bvh: crate::bvh::BvhStats,
+    /// Samples it took, over all pixels it rendered.
+    pub samples: u64,
+}

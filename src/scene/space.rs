@@ -1,0 +1,151 @@
+//! Moving a whole scene to another space, in one place: the camera's view
+//! space, a power-of-two scale, a moment of its motion. `SpaceMap` says
+//! what happens to a position, a direction, a normal and a length;
+//! `Scene::mapped` applies it to everything that has one.
+
+use std::borrow::Cow;
+
+use glam::{DQuat, DVec3};
+
+use super::model::{CameraSpec, LightShape, Scene};
+
+/// A change of space for `Scene::mapped`.
+pub trait SpaceMap {
+    /// A position, given the velocity of what it belongs to.
+    fn point(&self, p: DVec3, velocity: DVec3) -> DVec3;
+    /// A direction that lives in space: a velocity, a rect light's edge.
+    fn vector(&self, v: DVec3) -> DVec3 {
+        v
+    }
+    /// A shading normal, as written (not normalized again).
+    fn normal(&self, n: DVec3) -> DVec3 {
+        n
+    }
+    /// A length: a sphere's radius, a sphere light's.
+    fn length(&self, r: f64) -> f64 {
+        r
+    }
+}
+
+impl Scene {
+    /// The scene with every position, direction, normal and length moved by
+    /// `map`; materials, settings and the camera block as they are.
+    pub fn mapped(&self, map: &impl SpaceMap) -> Scene {
+        let mut s = self.clone();
+        for sphere in &mut s.spheres {
+            sphere.center = map.point(sphere.center, sphere.velocity);
+            sphere.radius = map.length(sphere.radius);
+            sphere.velocity = map.vector(sphere.velocity);
+        }
+        for t in &mut s.triangles {
+            for v in &mut t.vertices {
+                v.position = map.point(v.position, t.velocity);
+                v.normal = map.normal(v.normal);
+            }
+            t.velocity = map.vector(t.velocity);
+        }
+        for l in &mut s.lights {
+            l.position = map.point(l.position, l.velocity);
+            l.velocity = map.vector(l.velocity);
+            l.shape = match l.shape {
+                LightShape::Point => LightShape::Point,
+                LightShape::Sphere { radius } => LightShape::Sphere {
+                    radius: map.length(radius),
+                },
+                LightShape::Rect { edge_u, edge_v } => LightShape::Rect {
+                    edge_u: map.vector(edge_u),
+                    edge_v: map.vector(edge_v),
+                },
+            };
+        }
+        s
+    }
+
+    /// The scene at `time` seconds: everything moved along its velocity.
+    /// Velocities are kept, so motion blur can sample the shutter from there.
+    pub fn at_time(&self, time: f64) -> Scene {
+        if time == 0.0 {
+            return self.clone();
+        }
+        struct At(f64);
+        impl SpaceMap for At {
+            fn point(&self, p: DVec3, velocity: DVec3) -> DVec3 {
+                p + velocity * self.0
+            }
+        }
+        self.mapped(&At(time))
+    }
+
+    /// The scene in view space: what the renderers trace, with the camera
+    /// at the origin looking down -z (the classic camera) and the field of
+    /// view kept. Borrowed when there is no camera block or it is placed
+    /// as the classic one, so classic scenes are not touched. Positions
+    /// are moved and rotated in f64 (normals, velocities and light edges
+    /// rotated), once, before anything is rounded to f32.
+    pub fn in_view_space(&self) -> Cow<'_, Scene> {
+        let Some(cam) = self.camera else {
+            return Cow::Borrowed(self);
+        };
+        if cam.is_classic_placement() {
+            return Cow::Borrowed(self);
+        }
+        let Some(basis) = cam.basis() else {
+            // The parser refuses such a camera; keep the scene as it is.
+            return Cow::Borrowed(self);
+        };
+        struct View(CameraSpec, [DVec3; 3]);
+        impl SpaceMap for View {
+            fn point(&self, p: DVec3, _: DVec3) -> DVec3 {
+                self.0.to_view(&self.1, p)
+            }
+            fn vector(&self, v: DVec3) -> DVec3 {
+                CameraSpec::dir_to_view(&self.1, v)
+            }
+            fn normal(&self, n: DVec3) -> DVec3 {
+                CameraSpec::dir_to_view(&self.1, n)
+            }
+        }
+        let mut s = self.mapped(&View(cam, basis));
+        s.camera = Some(CameraSpec {
+            fov: cam.fov,
+            ..CameraSpec::CLASSIC
+        });
+        Cow::Owned(s)
+    }
+
+    /// The scene scaled by `factor` about the camera (the origin): positions,
+    /// radii, light shapes and velocities; the image is unchanged in exact
+    /// arithmetic. Normals keep their length (the shading normalizes them).
+    pub fn scaled(&self, factor: f64) -> Scene {
+        struct Scale(f64);
+        impl SpaceMap for Scale {
+            fn point(&self, p: DVec3, _: DVec3) -> DVec3 {
+                p * self.0
+            }
+            fn vector(&self, v: DVec3) -> DVec3 {
+                v * self.0
+            }
+            fn length(&self, r: f64) -> f64 {
+                r * self.0
+            }
+        }
+        self.mapped(&Scale(factor))
+    }
+
+    /// The scene turned by `turn` about the origin (the camera).
+    pub fn turned(&self, turn: DQuat) -> Scene {
+        struct Turn(DQuat);
+        impl SpaceMap for Turn {
+            fn point(&self, p: DVec3, _: DVec3) -> DVec3 {
+                self.0 * p
+            }
+            fn vector(&self, v: DVec3) -> DVec3 {
+                self.0 * v
+            }
+            fn normal(&self, n: DVec3) -> DVec3 {
+                self.0 * n
+            }
+        }
+        self.mapped(&Turn(turn))
+    }
+}
