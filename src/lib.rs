@@ -13,6 +13,7 @@ pub mod accuracy;
 pub mod bench;
 pub mod bvh;
 pub mod camera;
+pub mod check;
 pub mod compare;
 pub mod cpu;
 mod error;

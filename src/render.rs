@@ -57,6 +57,13 @@ pub struct RenderOptions {
     /// (`gpu::driver`), which `gpu` then holds once a device is chosen.
     pub tile: Option<u32>,
     pub pass_budget: Option<u32>,
+    /// CPU f32: trace pixels in packets where they apply (`cpu::packet`);
+    /// off, every ray alone, which keeps the shader's choice between two
+    /// surfaces a ray meets at exactly one t (`glint check`'s twin).
+    pub packets: bool,
+    /// Keep built GPU pipelines on disk here (`gpu::cache::default_dir`);
+    /// `None`: compile them every run.
+    pub pipeline_cache: Option<std::path::PathBuf>,
     pub gpu: GpuRenderOptions,
 }
 
@@ -75,6 +82,8 @@ impl Default for RenderOptions {
             generic: false,
             tile: None,
             pass_budget: None,
+            packets: true,
+            pipeline_cache: None,
             gpu: GpuRenderOptions::default(),
         }
     }
@@ -205,6 +214,7 @@ impl Renderer {
             let context_options = ContextOptions {
                 device: options.device.clone(),
                 validation: options.validation,
+                pipeline_cache: options.pipeline_cache.clone(),
             };
             let start = Instant::now();
             match Context::new(&context_options) {
@@ -291,6 +301,14 @@ impl Renderer {
         }
     }
 
+    /// The device's limits (None on the CPU).
+    pub fn device_limits(&self) -> Option<crate::gpu::DeviceLimits> {
+        match &self.engine {
+            Engine::Gpu { ctx, .. } => Some(*ctx.limits()),
+            Engine::Cpu(_) => None,
+        }
+    }
+
     pub fn validation_messages(&self) -> u32 {
         match &self.engine {
             Engine::Gpu { ctx, .. } => ctx.validation_messages(),
@@ -326,7 +344,7 @@ impl Renderer {
             precision,
             methods: self.options.methods,
             effects: p.effects,
-            packets: true,
+            packets: self.options.packets,
         }
     }
 
@@ -563,6 +581,12 @@ impl Renderer {
                     )?,
                 };
                 timings.extend(&gpu_timings);
+                // Over the renderer's life: how its pipelines came to be.
+                let (compiled, from_disk) = renderer.pipeline_builds();
+                timings.count("pipelines compiled", compiled);
+                if from_disk > 0 {
+                    timings.count("pipelines from disk", from_disk);
+                }
                 framebuffer
             }
             (Engine::Cpu(precision), Packed::Cpu(geometry)) => {

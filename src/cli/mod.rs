@@ -2,6 +2,7 @@
 
 mod accuracy;
 mod bench;
+mod check;
 mod compare;
 mod convert;
 mod devices;
@@ -53,7 +54,10 @@ enum Command {
     /// Write a model (.obj, .ply, .off) or a scene with `mesh` blocks as a
     /// classic scene, or a scene's triangles as OBJ (with an MTL file).
     Convert(convert::ConvertArgs),
-    /// List the Vulkan devices found.
+    /// Is this Vulkan device rendering right? The built-in suite on the
+    /// device and the CPU reference, a verdict per scene.
+    Check(check::CheckArgs),
+    /// List the Vulkan devices found, and the driver profile each gets.
     Devices,
     /// Show what a scene holds, what it calls for and the shader it gets.
     Info {
@@ -151,6 +155,7 @@ impl Cli {
             Command::Accuracy(_) => Some("or sweep the CPU reference alone: `--backend cpu`"),
             Command::Bench(b) => Some(b.no_device_hint()),
             Command::Devices
+            | Command::Check(_)
             | Command::Compare(_)
             | Command::Stitch(_)
             | Command::Convert(_)
@@ -171,6 +176,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
         Command::Accuracy(args) => accuracy::run(args),
         Command::Stitch(args) => stitch::run(args),
         Command::Convert(args) => convert::run(args),
+        Command::Check(args) => check::run(args),
         Command::Devices => devices::run(),
         Command::Info {
             scene,

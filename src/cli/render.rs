@@ -348,6 +348,8 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         },
         settings: args.effects.settings(),
         generic: args.generic_shader,
+        packets: true,
+        pipeline_cache: glint::gpu::cache::default_dir(),
         tile: args.tile,
         pass_budget: args.pass_budget,
         gpu: glint::gpu::GpuRenderOptions {

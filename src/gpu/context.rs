@@ -53,6 +53,9 @@ pub struct ContextOptions {
     pub device: Option<DeviceSelector>,
     /// Enable VK_LAYER_KHRONOS_validation when it is installed.
     pub validation: bool,
+    /// Keep built pipelines on disk here (`cache::default_dir`); `None`:
+    /// every run compiles its pipelines.
+    pub pipeline_cache: Option<std::path::PathBuf>,
 }
 
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -64,6 +67,9 @@ pub struct DeviceInfo {
     pub api_version: String,
     /// How glint renders on it (`gpu::driver`).
     pub profile: DriverProfile,
+    /// Vendor, device, driver version and the driver's pipeline cache
+    /// UUID: what cached pipelines are keyed by (`gpu::cache`).
+    pub cache_key: super::cache::DeviceKey,
     has_compute: bool,
     rank: u8,
 }
@@ -81,6 +87,11 @@ pub(crate) struct Shared {
     /// `VK_KHR_buffer_device_address`, where `DeviceLimits::device_addresses`.
     pub addresses: Option<ash::khr::buffer_device_address::Device>,
     pub validation: bool,
+    /// `VK_EXT_pipeline_creation_feedback` is enabled: a pipeline build
+    /// says whether the cache it was given held it.
+    pub feedback: bool,
+    /// Where built pipelines are kept between runs.
+    pub pipeline_cache: Option<super::cache::DiskCache>,
     poisoned: AtomicBool,
 }
 
@@ -88,12 +99,17 @@ fn limits_of(inst: &ash::Instance, pd: vk::PhysicalDevice, queue_family: u32) ->
     // SAFETY: plain queries on a physical device of this instance.
     let props = unsafe { inst.get_physical_device_properties(pd) };
     let mut max_allocation = 1u64 << 30;
+    let mut subgroup_size = 0;
     if props.api_version >= vk::API_VERSION_1_1 {
         let mut m3 = vk::PhysicalDeviceMaintenance3Properties::default();
-        let mut props2 = vk::PhysicalDeviceProperties2::default().push_next(&mut m3);
-        // SAFETY: 1.1 device: the maintenance3 chain is valid.
+        let mut sg = vk::PhysicalDeviceSubgroupProperties::default();
+        let mut props2 = vk::PhysicalDeviceProperties2::default()
+            .push_next(&mut m3)
+            .push_next(&mut sg);
+        // SAFETY: 1.1 device: the maintenance3 and subgroup chain is valid.
         unsafe { inst.get_physical_device_properties2(pd, &mut props2) };
         max_allocation = m3.max_memory_allocation_size;
+        subgroup_size = sg.subgroup_size;
     }
     let l = props.limits;
     DeviceLimits {
@@ -111,6 +127,7 @@ fn limits_of(inst: &ash::Instance, pd: vk::PhysicalDevice, queue_family: u32) ->
             .get(queue_family as usize)
             .map_or(0, |f| f.timestamp_valid_bits),
         device_addresses: false,
+        subgroup_size,
     }
 }
 
@@ -291,6 +308,12 @@ fn describe(instance: &Instance, pd: vk::PhysicalDevice, index: usize) -> Device
         device_type: device_type.to_string(),
         driver,
         profile,
+        cache_key: super::cache::device_key(
+            props.vendor_id,
+            props.device_id,
+            props.driver_version,
+            props.pipeline_cache_uuid,
+        ),
         api_version: format!(
             "{}.{}.{}",
             vk::api_version_major(v),
@@ -343,13 +366,30 @@ fn choose(devices: &[DeviceInfo], selector: Option<&DeviceSelector>) -> Result<u
     Ok(found.index)
 }
 
+/// A device created on the chosen physical device: its handles, what it
+/// is, its queue family, and which of (device addresses, creation
+/// feedback) it enabled.
+type Chosen = (
+    ash::Device,
+    vk::PhysicalDevice,
+    DeviceInfo,
+    u32,
+    (bool, bool),
+);
+
 impl Context {
     pub fn new(options: &ContextOptions) -> Result<Context, GpuError> {
         let instance = create_instance(options.validation)?;
         match Self::with_instance(&instance, options) {
-            Ok((device, pd, info, queue_family, addresses)) => {
-                Self::finish(instance, device, pd, info, queue_family, addresses)
-            }
+            Ok((device, pd, info, queue_family, extensions)) => Self::finish(
+                instance,
+                device,
+                pd,
+                info,
+                queue_family,
+                extensions,
+                options.pipeline_cache.clone(),
+            ),
             Err(e) => {
                 // SAFETY: no device was created; tear down what we made.
                 unsafe {
@@ -363,10 +403,7 @@ impl Context {
         }
     }
 
-    fn with_instance(
-        instance: &Instance,
-        options: &ContextOptions,
-    ) -> Result<(ash::Device, vk::PhysicalDevice, DeviceInfo, u32, bool), GpuError> {
+    fn with_instance(instance: &Instance, options: &ContextOptions) -> Result<Chosen, GpuError> {
         let pds = physical_devices(instance)?;
         let infos: Vec<DeviceInfo> = pds
             .iter()
@@ -418,6 +455,12 @@ impl Context {
         if addresses {
             ext_names.push(ash::khr::buffer_device_address::NAME.as_ptr());
         }
+        let feedback = dev_exts
+            .iter()
+            .any(|e| e.extension_name_as_c_str() == Ok(ash::ext::pipeline_creation_feedback::NAME));
+        if feedback {
+            ext_names.push(ash::ext::pipeline_creation_feedback::NAME.as_ptr());
+        }
         let priorities = [1.0f32];
         let queues = [vk::DeviceQueueCreateInfo::default()
             .queue_family_index(family)
@@ -434,7 +477,13 @@ impl Context {
         }
         // SAFETY: every pointer in `info` outlives the call.
         let device = unsafe { inst.create_device(pd, &info, None) }.call("vkCreateDevice")?;
-        Ok((device, pd, infos[index].clone(), family, addresses))
+        Ok((
+            device,
+            pd,
+            infos[index].clone(),
+            family,
+            (addresses, feedback),
+        ))
     }
 
     fn finish(
@@ -443,7 +492,8 @@ impl Context {
         physical: vk::PhysicalDevice,
         info: DeviceInfo,
         queue_family: u32,
-        addresses: bool,
+        (addresses, feedback): (bool, bool),
+        pipeline_cache: Option<std::path::PathBuf>,
     ) -> Result<Context, GpuError> {
         let allocator = Allocator::new(&AllocatorCreateDesc {
             instance: instance.instance.clone(),
@@ -473,6 +523,7 @@ impl Context {
         // SAFETY: the family was requested with one queue at device creation.
         let queue = unsafe { device.get_device_queue(queue_family, 0) };
         let validation = instance.debug.is_some();
+        let info_key = info.cache_key;
         let mut limits = limits_of(&instance.instance, physical, queue_family);
         limits.device_addresses = addresses;
         let addresses = addresses
@@ -490,6 +541,9 @@ impl Context {
                 limits,
                 addresses,
                 validation,
+                feedback,
+                pipeline_cache: pipeline_cache
+                    .map(|dir| super::cache::DiskCache::new(dir, info_key)),
                 poisoned: AtomicBool::new(false),
             }),
         })
@@ -526,6 +580,7 @@ mod tests {
             driver: String::new(),
             api_version: String::new(),
             profile: DriverProfile::unknown(),
+            cache_key: [0; 28],
             has_compute: true,
             rank,
         }

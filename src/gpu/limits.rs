@@ -32,4 +32,7 @@ pub struct DeviceLimits {
     /// (`DriverProfile::address_lists`), so that the shader reads its hot lists that
     /// way (`Lists::Address`).
     pub device_addresses: bool,
+    /// `subgroupSize` (Vulkan 1.1; 0 where the device does not say): for
+    /// reports, as llvmpipe's 8 lanes are what its measurements assume.
+    pub subgroup_size: u32,
 }

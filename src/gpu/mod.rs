@@ -9,6 +9,7 @@
 
 mod bindings;
 mod buffer;
+pub mod cache;
 mod context;
 mod debug;
 pub mod driver;

@@ -7,6 +7,7 @@
 
 use std::collections::HashMap;
 use std::ffi::CStr;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
@@ -71,6 +72,18 @@ pub struct TracePipeline {
     /// One per `Lists::ALL`.
     layouts: [Layout; 4],
     pipelines: Mutex<HashMap<PipelineKey, vk::Pipeline>>,
+    /// Pipelines the driver compiled, and found in the disk cache.
+    compiled: AtomicU64,
+    from_disk: AtomicU64,
+}
+
+/// How a pipeline `TracePipeline::get` had to build came to be.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Built {
+    /// The driver compiled it.
+    Compiled,
+    /// The driver found it in the pipeline cache from disk.
+    FromDisk,
 }
 
 impl TracePipeline {
@@ -87,6 +100,8 @@ impl TracePipeline {
             shared: shared.clone(),
             layouts: [null; 4],
             pipelines: Mutex::new(HashMap::new()),
+            compiled: AtomicU64::new(0),
+            from_disk: AtomicU64::new(0),
         };
         for lists in Lists::ALL {
             let bindings: Vec<_> = lists
@@ -141,19 +156,81 @@ impl TracePipeline {
 
     /// The pipeline for `key`, built on first use; the duration is the
     /// build time (specialisation, SPIR-V and driver compile) when this call
-    /// built it, zero when it came from the cache.
-    pub fn get(&self, key: PipelineKey) -> Result<(vk::Pipeline, Duration), GpuError> {
+    /// built it, zero when it was built already, and how it was built.
+    pub fn get(
+        &self,
+        key: PipelineKey,
+    ) -> Result<(vk::Pipeline, Duration, Option<Built>), GpuError> {
         let mut pipelines = self.pipelines.lock().unwrap_or_else(|e| e.into_inner());
         if let Some(&p) = pipelines.get(&key) {
-            return Ok((p, Duration::ZERO));
+            return Ok((p, Duration::ZERO, None));
         }
         let start = Instant::now();
-        let pipeline = self.build(key)?;
+        let (pipeline, built) = self.build_cached(key)?;
         pipelines.insert(key, pipeline);
-        Ok((pipeline, start.elapsed()))
+        match built {
+            Built::Compiled => &self.compiled,
+            Built::FromDisk => &self.from_disk,
+        }
+        .fetch_add(1, Ordering::Relaxed);
+        Ok((pipeline, start.elapsed(), Some(built)))
     }
 
-    fn build(&self, key: PipelineKey) -> Result<vk::Pipeline, GpuError> {
+    /// Pipelines built so far: (compiled by the driver, found on disk).
+    pub fn builds(&self) -> (u64, u64) {
+        (
+            self.compiled.load(Ordering::Relaxed),
+            self.from_disk.load(Ordering::Relaxed),
+        )
+    }
+
+    /// `build`, through the disk cache where there is one: its data for
+    /// this shader goes to the driver, and what the driver built is written
+    /// back when the driver did not find it there.
+    fn build_cached(&self, key: PipelineKey) -> Result<(vk::Pipeline, Built), GpuError> {
+        let Some(disk) = &self.shared.pipeline_cache else {
+            return Ok((self.build(key)?, Built::Compiled));
+        };
+        let words = self.words(key)?;
+        let shader = super::cache::shader_hash(&words, key.kernel.entry_point().to_bytes());
+        let initial = match disk.load(shader) {
+            super::cache::Loaded::Data(d) => d,
+            _ => Vec::new(),
+        };
+        let device = &self.shared.device;
+        // SAFETY: a plain creation on a live device, destroyed below.
+        let cache = unsafe {
+            device.create_pipeline_cache(
+                &vk::PipelineCacheCreateInfo::default().initial_data(&initial),
+                None,
+            )
+        }
+        .call("vkCreatePipelineCache")?;
+        let built = self.create(key, &words, cache);
+        let result = built.map(|(pipeline, hit)| {
+            let from_disk = hit.unwrap_or(!initial.is_empty());
+            if !from_disk {
+                // SAFETY: the cache is live; the driver fills the data.
+                if let Ok(data) = unsafe { device.get_pipeline_cache_data(cache) } {
+                    // A failed write costs the next run a compile, no more.
+                    let _ = disk.store(shader, &data);
+                }
+            }
+            (
+                pipeline,
+                if from_disk {
+                    Built::FromDisk
+                } else {
+                    Built::Compiled
+                },
+            )
+        });
+        // SAFETY: the pipeline no longer needs its cache.
+        unsafe { device.destroy_pipeline_cache(cache, None) };
+        result
+    }
+
+    fn words(&self, key: PipelineKey) -> Result<Vec<u32>, GpuError> {
         let variant = super::shader::Variant {
             lists: key.lists,
             light_skips: key.light_skips,
@@ -161,28 +238,62 @@ impl TracePipeline {
             leaf_order: key.leaf_order,
             one_pass: key.one_pass,
         };
-        let words = super::shader::spirv(key.methods, key.features, variant)?;
+        Ok(super::shader::spirv(key.methods, key.features, variant)?)
+    }
+
+    /// Creates the pipeline from `words` with `cache`; whether the driver
+    /// found it in the cache, where it can say
+    /// (`VK_EXT_pipeline_creation_feedback`).
+    fn create(
+        &self,
+        key: PipelineKey,
+        words: &[u32],
+        cache: vk::PipelineCache,
+    ) -> Result<(vk::Pipeline, Option<bool>), GpuError> {
         let device = &self.shared.device;
-        // SAFETY: valid create infos on a live device; the module is destroyed
-        // once the pipeline exists, the pipeline is owned by `self`.
+        let mut feedback = vk::PipelineCreationFeedback::default();
+        let mut stages = [vk::PipelineCreationFeedback::default()];
+        let mut feedback_info = vk::PipelineCreationFeedbackCreateInfo::default()
+            .pipeline_creation_feedback(&mut feedback)
+            .pipeline_stage_creation_feedbacks(&mut stages);
+        // SAFETY: valid create infos on a live device; the module is
+        // destroyed once the pipeline exists, the pipeline is owned by `self`.
         let pipeline = unsafe {
             let module = device
-                .create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None)
+                .create_shader_module(&vk::ShaderModuleCreateInfo::default().code(words), None)
                 .call("vkCreateShaderModule")?;
             let stage = vk::PipelineShaderStageCreateInfo::default()
                 .stage(vk::ShaderStageFlags::COMPUTE)
                 .module(module)
                 .name(key.kernel.entry_point());
-            let info = vk::ComputePipelineCreateInfo::default()
+            let mut info = vk::ComputePipelineCreateInfo::default()
                 .stage(stage)
                 .layout(self.layout(key.lists).pipeline);
-            let created = device.create_compute_pipelines(vk::PipelineCache::null(), &[info], None);
+            if self.shared.feedback {
+                info = info.push_next(&mut feedback_info);
+            }
+            let created = device.create_compute_pipelines(cache, &[info], None);
             device.destroy_shader_module(module, None);
             created
                 .map_err(|(_, r)| r)
                 .call("vkCreateComputePipelines")?[0]
         };
-        Ok(pipeline)
+        let valid = self.shared.feedback
+            && feedback
+                .flags
+                .contains(vk::PipelineCreationFeedbackFlags::VALID);
+        let hit = valid.then(|| {
+            feedback
+                .flags
+                .contains(vk::PipelineCreationFeedbackFlags::APPLICATION_PIPELINE_CACHE_HIT)
+        });
+        Ok((pipeline, hit))
+    }
+
+    /// The pipeline for `key`, compiled without any cache.
+    fn build(&self, key: PipelineKey) -> Result<vk::Pipeline, GpuError> {
+        let words = self.words(key)?;
+        Ok(self.create(key, &words, vk::PipelineCache::null())?.0)
     }
 }
 

@@ -28,6 +28,7 @@ pub use metrics::{count, Counts, Metric};
 /// Where the suite's scene files live, relative to the repository root.
 pub const SCENE_DIR: &str = "scenes/hard";
 
+#[derive(Clone, Debug)]
 pub struct Case {
     pub name: String,
     /// One line: what makes it hard.

@@ -101,6 +101,7 @@ pub fn gpu() -> Option<&'static Mutex<Gpu>> {
         let options = ContextOptions {
             device: None,
             validation: true,
+            pipeline_cache: None,
         };
         let created = match Context::new(&options) {
             Err(glint::gpu::GpuError::NoValidationLayer) if !in_ci() => {

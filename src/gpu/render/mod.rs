@@ -147,6 +147,12 @@ impl GpuRenderer {
             .1)
     }
 
+    /// Pipelines built so far: (compiled by the driver, found in the disk
+    /// cache).
+    pub fn pipeline_builds(&self) -> (u64, u64) {
+        self.pipeline.builds()
+    }
+
     /// Renders `scene` as seen by `camera`. `progress(pixels_done,
     /// pixels_total)` is called after every pass: a pixel is done when its
     /// last pass has run.

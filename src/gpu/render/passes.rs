@@ -127,7 +127,7 @@ impl Gpu<'_> {
             if let Some(p) = *slot {
                 return Ok(p);
             }
-            let (p, build_time) = self.pipeline.get(PipelineKey {
+            let (p, build_time, _) = self.pipeline.get(PipelineKey {
                 one_pass: key.one_pass && !work.resumable,
                 ..key
             })?;

@@ -360,6 +360,7 @@ mod tests {
             timestamp_period: 1.0,
             timestamp_bits: 64,
             device_addresses: false,
+            subgroup_size: 8,
         }
     }
 
