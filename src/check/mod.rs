@@ -210,7 +210,13 @@ fn check_case(
     if options.plant_error.as_deref() == Some(case.name.as_str()) {
         plant(&mut image);
     }
-    let twin = cpu32.render(&case.scene, &quiet)?.framebuffer;
+    let twin_output = cpu32.render(&case.scene, &quiet)?;
+    // The twin casts exactly the shader's rays (the same algorithm, ray
+    // for ray); the device counts its own only where a pass's 32-bit
+    // counters cannot wrap, which large tiles can.
+    let twin_rays =
+        twin_output.timings.counted(CLOSEST_RAYS) + twin_output.timings.counted(SHADOW_RAYS);
+    let twin = twin_output.framebuffer;
     let truth = cpu64.render(&case.scene, &quiet)?.framebuffer;
     let against_twin = compare_framebuffers(&twin, &image, 1.0)?;
     let against_truth = compare_framebuffers(&truth, &image, 1.0)?;
@@ -269,7 +275,10 @@ fn check_case(
         .phase("dispatch")
         .unwrap_or_default()
         .saturating_sub(timings.phase("pipeline").unwrap_or_default());
-    let rays = timings.counted(CLOSEST_RAYS) + timings.counted(SHADOW_RAYS);
+    let rays = match timings.counted(CLOSEST_RAYS) + timings.counted(SHADOW_RAYS) {
+        0 => twin_rays,
+        n => n,
+    };
     let lists = ["split lists", "uniform lists", "address lists"]
         .into_iter()
         .find(|l| timings.has_count(l))

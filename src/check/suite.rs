@@ -400,9 +400,14 @@ pub fn cases(level: Level, storage_range: Option<u64>) -> Vec<Case> {
             let seg = ((n as f64).sqrt() as usize).max(4) + 2;
             (sphere_grid(1, seg), None)
         }
-        // A binding of 1 MiB holds a 96x72 image's pixel state (884 KB);
-        // 32,400 triangles' 1.5 MB then take two chunks.
-        _ => (sphere_grid(6, 30), Some(1 << 20)),
+        _ => {
+            // The cap must hold the image's pixel state (128 bytes a
+            // pixel) and output; the triangles then take two or three
+            // chunks of it.
+            let cap = (u64::from(w * h) * 128).next_power_of_two().max(1 << 20);
+            let seg = ((triangles_for(cap * 5 / 2) as f64 / 36.0).sqrt() as usize).max(4);
+            (sphere_grid(6, seg), Some(cap))
+        }
     };
     out.push(Case {
         storage_limit: cap,

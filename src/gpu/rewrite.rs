@@ -326,6 +326,56 @@ struct DeviceArray {
     element_pointer: u32,
 }
 
+/// Floating-point arithmetic whose result a driver may fuse into a
+/// multiply-add unless told not to.
+const FLOAT_ARITHMETIC: [spirv::Op; 8] = [
+    spirv::Op::FAdd,
+    spirv::Op::FSub,
+    spirv::Op::FMul,
+    spirv::Op::FDiv,
+    spirv::Op::FNegate,
+    spirv::Op::VectorTimesScalar,
+    spirv::Op::Dot,
+    spirv::Op::MatrixTimesVector,
+];
+
+/// Every floating-point operation decorated `NoContraction`, so that no
+/// driver fuses a multiply and an add into one rounding. The robust
+/// intersection tests are watertight only in the arithmetic they were
+/// written in (the shared edge's function evaluated the same way on both
+/// sides), and the CPU f32 twin follows it operation for operation.
+/// Measured on NVIDIA's 580 driver (H200), which contracts where SPIR-V
+/// lets it: `vertex_rays` cracked (pixel rays through shared vertices
+/// found no triangle) without this; lavapipe never contracts, so it
+/// changes no bit there.
+pub fn no_contraction(words: &[u32]) -> Vec<u32> {
+    if words.len() < HEADER_WORDS {
+        return words.to_vec();
+    }
+    let float_ops: Vec<u32> = FLOAT_ARITHMETIC.iter().map(|&o| o as u32).collect();
+    // Result ids: word 2 of these instructions (result type, result id).
+    let results: Vec<u32> = instructions(words)
+        .filter(|(op, operands)| float_ops.contains(op) && operands.len() >= 2)
+        .map(|(_, operands)| operands[1])
+        .collect();
+    let first_type = instructions(words)
+        .position(|(op, _)| (OP_TYPE_VOID..=OP_TYPE_FORWARD_POINTER).contains(&op));
+    let mut out = words[..HEADER_WORDS].to_vec();
+    for (k, (op, operands)) in instructions(words).enumerate() {
+        if Some(k) == first_type {
+            for &id in &results {
+                push_instruction(&mut out, OP_DECORATE, &[id, DECORATION_NO_CONTRACTION]);
+            }
+        }
+        push_instruction(&mut out, op, operands);
+    }
+    out
+}
+
+const OP_TYPE_VOID: u32 = spirv::Op::TypeVoid as u32;
+const OP_TYPE_FORWARD_POINTER: u32 = spirv::Op::TypeForwardPointer as u32;
+const DECORATION_NO_CONTRACTION: u32 = spirv::Decoration::NoContraction as u32;
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -462,5 +512,45 @@ mod tests {
         assert_eq!(unfilled[..HEADER_WORDS], raw[..HEADER_WORDS]);
         let shipped = shader_words(Methods::Robust, Features::ALL, Variant::default()).unwrap();
         assert_eq!(fills(&shipped).0, 0);
+    }
+
+    /// Every float operation's result carries `NoContraction`, the
+    /// decorations sit before the first type, and nothing else changes.
+    #[test]
+    fn every_float_operation_is_kept_from_contraction() {
+        let (module, info) =
+            specialize(Methods::Robust, Features::ALL, Variant::default()).unwrap();
+        let raw = spv::write_vec(&module, &info, &spv::Options::default(), None).unwrap();
+        let kept = no_contraction(&raw);
+        let decorated: HashSet<u32> = instructions(&kept)
+            .filter(|&(op, o)| op == OP_DECORATE && o.get(1) == Some(&DECORATION_NO_CONTRACTION))
+            .map(|(_, o)| o[0])
+            .collect();
+        let float_ops: Vec<u32> = FLOAT_ARITHMETIC.iter().map(|&o| o as u32).collect();
+        let results: HashSet<u32> = instructions(&raw)
+            .filter(|(op, _)| float_ops.contains(op))
+            .map(|(_, o)| o[1])
+            .collect();
+        assert!(results.len() > 100, "{} float operations", results.len());
+        assert_eq!(decorated, results);
+        let others = |w: &[u32]| -> Vec<(u32, Vec<u32>)> {
+            instructions(w)
+                .filter(|&(op, o)| {
+                    !(op == OP_DECORATE && o.get(1) == Some(&DECORATION_NO_CONTRACTION))
+                })
+                .map(|(op, o)| (op, o.to_vec()))
+                .collect()
+        };
+        assert_eq!(others(&kept), others(&raw));
+        let first_type = instructions(&kept)
+            .position(|(op, _)| (OP_TYPE_VOID..=OP_TYPE_FORWARD_POINTER).contains(&op))
+            .unwrap();
+        let last_decoration = instructions(&kept)
+            .enumerate()
+            .filter(|(_, (op, _))| *op == OP_DECORATE)
+            .map(|(k, _)| k)
+            .max()
+            .unwrap();
+        assert!(last_decoration < first_type);
     }
 }

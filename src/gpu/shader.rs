@@ -18,7 +18,7 @@ use naga::{Block, Expression, Function, Handle, Literal, Module, Statement};
 use super::bindings::Lists;
 pub use super::error::ShaderError;
 pub use super::rewrite::DEVICE_MEMORY_BINDING;
-use super::rewrite::{device_loads, unfill_local_arrays};
+use super::rewrite::{device_loads, no_contraction, unfill_local_arrays};
 use crate::features::Features;
 use crate::methods::Methods;
 
@@ -181,7 +181,7 @@ pub fn spirv(
         what: format!("{} methods, features {}", methods.name(), features.label()),
         message: format!("SPIR-V generation: {e}"),
     })?;
-    let words = unfill_local_arrays(&words);
+    let words = no_contraction(&unfill_local_arrays(&words));
     Ok(if variant.lists == Lists::Address {
         device_loads(&words)
     } else {
