@@ -532,6 +532,20 @@ fn gltf_nodes_materials_modes_and_errors() {
     let e = with("range.gltf", json).expect_err("past the view");
     assert!(e.to_string().contains("accessors[2]"), "{e}");
 
+    // POSITION naming an accessor that does not exist (a panic inside the
+    // glTF crate's validation, found by fuzzing): refused with the path.
+    let e = with(
+        "noaccessor.gltf",
+        r#"{"asset":{"version":"2.0"},"meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}]}"#
+            .to_string(),
+    )
+    .expect_err("no accessors");
+    assert!(
+        e.to_string()
+            .contains("meshes[0].primitives[0].attributes.POSITION"),
+        "{e}"
+    );
+
     // Compressed meshes: refused, saying what to do.
     let json = gltf_json(&s, &uri, r#"{"mesh":0}"#, "").replacen(
         '{',

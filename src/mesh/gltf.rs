@@ -165,6 +165,27 @@ fn root(json: &[u8], b: &mut Builder) -> Result<gltf::json::Root, MeshError> {
         }
     }
     root.extensions_required.clear();
+    // The crate's validation indexes the accessor a POSITION names before
+    // checking that it exists (gltf-json 1.4: a panic, found by fuzzing).
+    for (m, mesh) in root.meshes.iter().enumerate() {
+        for (p, prim) in mesh.primitives.iter().enumerate() {
+            let position =
+                gltf::json::validation::Checked::Valid(gltf::json::mesh::Semantic::Positions);
+            if let Some(i) = prim.attributes.get(&position) {
+                if i.value() >= root.accessors.len() {
+                    return Err(error(
+                        path,
+                        format!("meshes[{m}].primitives[{p}].attributes.POSITION"),
+                        format!(
+                            "refers to accessor {}, but there are {}",
+                            i.value(),
+                            root.accessors.len()
+                        ),
+                    ));
+                }
+            }
+        }
+    }
     let mut errors = Vec::new();
     root.validate(&root, gltf::json::Path::new, &mut |at, e| {
         let at = at().to_string();
