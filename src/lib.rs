@@ -38,5 +38,6 @@ pub mod render;
 pub mod scene;
 pub mod timing;
 pub mod units;
+pub mod view;
 
 pub use error::Error;

@@ -59,6 +59,8 @@ pub enum Stopped {
     TimeLimit,
     /// Another pass would exceed `Effects::MAX_SPP` samples per pixel.
     MaxSamples,
+    /// Whoever watched the passes ended it (`glint view`'s camera moved).
+    Cancelled,
 }
 
 /// Where a progressive render stands after a pass.

@@ -21,7 +21,7 @@ use crate::scene::{Effects, Scene, Settings};
 use crate::timing::Timings;
 use crate::Error;
 
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Backend {
     /// The best hardware Vulkan device; the CPU reference when there is
     /// none, or only a software one such as lavapipe, which is slower than
@@ -444,6 +444,22 @@ impl Renderer {
         stop: &StopAt,
         on_pass: &mut dyn FnMut(&PassReport),
     ) -> Result<Progressive, Error> {
+        self.render_progressive_watched(scene, stop, &mut |report, _| {
+            on_pass(report);
+            true
+        })
+    }
+
+    /// `render_progressive`, showing each pass's image as it lands:
+    /// `on_pass` gets the report and the passes so far (their `mean()` is
+    /// the image), and ends the render early by returning false
+    /// (`Stopped::Cancelled`). `glint view` refines its window this way.
+    pub fn render_progressive_watched(
+        &self,
+        scene: &Scene,
+        stop: &StopAt,
+        on_pass: &mut dyn FnMut(&PassReport, &crate::progressive::Accumulator) -> bool,
+    ) -> Result<Progressive, Error> {
         let start = Instant::now();
         let scene = &*scene.in_view_space();
         let mut timings = self.take_setup_timings();
@@ -497,8 +513,11 @@ impl Renderer {
                 elapsed: start.elapsed(),
                 estimated_rmse: acc.estimated_rmse(),
             };
-            on_pass(&report);
+            let go_on = on_pass(&report, &acc);
             history.push(report);
+            if !go_on {
+                break Stopped::Cancelled;
+            }
             if done_blocks {
                 break Stopped::Target;
             }

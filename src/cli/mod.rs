@@ -9,6 +9,7 @@ mod devices;
 mod info;
 mod render;
 mod stitch;
+mod view;
 
 use std::path::PathBuf;
 use std::process::ExitCode;
@@ -40,6 +41,9 @@ pub struct Cli {
 enum Command {
     /// Render a scene to a JPEG or PNG image.
     Render(render::RenderArgs),
+    /// Show a scene refining in a window, pass by pass; keys and the mouse
+    /// move the camera (see docs/cli.md).
+    View(view::ViewArgs),
     /// Compare two images: max/mean abs diff, pixels over a threshold, PSNR, FLIP.
     Compare(compare::CompareArgs),
     /// Time renders per scene and backend (medians).
@@ -151,7 +155,9 @@ impl Cli {
     /// error with exit 3); each names a flag the command accepts.
     pub fn no_device_hint(&self) -> Option<&'static str> {
         match &self.command {
-            Command::Render(_) => Some("or render on the CPU reference: `--backend cpu`"),
+            Command::Render(_) | Command::View(_) => {
+                Some("or render on the CPU reference: `--backend cpu`")
+            }
             Command::Accuracy(_) => Some("or sweep the CPU reference alone: `--backend cpu`"),
             Command::Bench(b) => Some(b.no_device_hint()),
             Command::Devices
@@ -171,6 +177,7 @@ pub fn run(cli: Cli) -> anyhow::Result<ExitCode> {
     }
     match cli.command {
         Command::Render(args) => render::run(args),
+        Command::View(args) => view::run(args),
         Command::Compare(args) => compare::run(args),
         Command::Bench(args) => bench::run(args),
         Command::Accuracy(args) => accuracy::run(args),

@@ -143,6 +143,10 @@ pub struct RenderArgs {
     /// settings) instead of one specialised for the scene; for comparisons.
     #[arg(long)]
     generic_shader: bool,
+    /// Also show the finished image in a window (`glint view` refines one
+    /// as it renders); the image is written first.
+    #[arg(long, conflicts_with_all = ["frames", "pixel"])]
+    show: bool,
     /// GPU: read every list from its storage buffer even on a CPU device
     /// (the shader a GPU runs), not through device addresses or from
     /// uniform copies; for comparisons.
@@ -193,7 +197,7 @@ impl RenderArgs {
     }
 }
 
-fn parse_error_target(s: &str) -> Result<f64, String> {
+pub(super) fn parse_error_target(s: &str) -> Result<f64, String> {
     match s.trim().parse::<f64>() {
         Ok(v) if v.is_finite() && v > 0.0 && v < 1.0 => Ok(v),
         _ => Err(format!(
@@ -235,7 +239,7 @@ fn parse_pixel(s: &str) -> Result<[u32; 2], String> {
     }
 }
 
-fn parse_seconds(s: &str) -> Result<f64, String> {
+pub(super) fn parse_seconds(s: &str) -> Result<f64, String> {
     match s.trim().parse::<f64>() {
         Ok(v) if v.is_finite() && v > 0.0 && v <= 1e6 => Ok(v),
         _ => Err(format!(
@@ -244,7 +248,7 @@ fn parse_seconds(s: &str) -> Result<f64, String> {
     }
 }
 
-fn parse_rgb(s: &str) -> Result<[f32; 3], String> {
+pub(super) fn parse_rgb(s: &str) -> Result<[f32; 3], String> {
     let parts: Vec<&str> = s.split(',').map(str::trim).collect();
     let values: Result<Vec<f32>, _> = parts.iter().map(|p| p.parse::<f32>()).collect();
     match values {
@@ -468,6 +472,10 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
             output.memory
         ));
     }
+    if args.show {
+        let title = format!("{} ({})", out.path().display(), output.renderer);
+        glint::view::show(output.framebuffer.clone(), title)?;
+    }
     if args.stats || args.verbose {
         say.line(stats(&output, &timings));
     }
@@ -682,6 +690,8 @@ fn render_progressive(
             }
             say.line(format!("stopped: the cap of {} samples per pixel", glint::scene::Effects::MAX_SPP));
         }
+        // Only a watcher of the passes ends a render so (`glint view`).
+        Stopped::Cancelled => say.line("stopped: cancelled"),
     }
     if out_is_8_bit(out) && r.estimated_rmse.is_some_and(|e| e < 0.002) {
         say.line(

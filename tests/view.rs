@@ -1,0 +1,340 @@
+//! `glint view` in a real window on an X server this test starts (Xvfb):
+//! the window's pixels, read back from the server, are the image `render`
+//! writes; the title reports samples and error; a drag moves the camera
+//! and restarts the refinement; `C` prints the camera block and `S` saves
+//! what `render` makes with it; without a display, one line and exit 2.
+
+mod common;
+
+use std::path::Path;
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+use common::*;
+
+const SCENE: &str = "4
+amb: 0.1 0.1 0.12
+sphere pos: -0.6 0 -3 rad: 0.6 dif: 0.8 0.3 0.2 spe: 0.5 0.5 0.5 shi: 30
+sphere pos: 0.7 -0.2 -3.5 rad: 0.5 dif: 0.2 0.5 0.8 spe: 0.3 0.3 0.3 shi: 10
+triangle
+pos: -3 -0.7 -1 nor: 0 1 0 dif: 0.7 0.7 0.6 spe: 0 0 0 shi: 1
+pos: 3 -0.7 -1 nor: 0 1 0 dif: 0.7 0.7 0.6 spe: 0 0 0 shi: 1
+pos: 0 -0.7 -8 nor: 0 1 0 dif: 0.7 0.7 0.6 spe: 0 0 0 shi: 1
+light pos: 2 3 0 col: 0.8 0.8 0.8
+";
+
+/// An Xvfb of this test's own, on a display number no one else uses.
+struct Xvfb {
+    child: Child,
+    display: String,
+}
+
+impl Xvfb {
+    fn start() -> Option<Xvfb> {
+        let have = |tool: &str| {
+            Command::new("sh")
+                .args(["-c", &format!("command -v {tool}")])
+                .output()
+                .is_ok_and(|o| o.status.success())
+        };
+        let missing: Vec<&str> = ["Xvfb", "xdotool", "import"]
+            .into_iter()
+            .filter(|t| !have(t))
+            .collect();
+        if !missing.is_empty() {
+            let msg = format!("SKIPPED: the window tests need {missing:?} (apt-get install xvfb xdotool imagemagick)");
+            assert!(!in_ci(), "{msg}");
+            notice(&msg);
+            return None;
+        }
+        // A display per test of this process (they run in parallel).
+        static NEXT: std::sync::atomic::AtomicU32 = std::sync::atomic::AtomicU32::new(0);
+        let k = NEXT.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+        let n = 100 + (std::process::id() % 400) * 4 + k;
+        let display = format!(":{n}");
+        let child = Command::new("Xvfb")
+            .args([&display, "-screen", "0", "1024x768x24", "-nolisten", "tcp"])
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("start Xvfb");
+        let x = Xvfb { child, display };
+        let start = Instant::now();
+        while start.elapsed() < Duration::from_secs(10) {
+            if x.tool("xdotool", &["getdisplaygeometry"]).status.success() {
+                return Some(x);
+            }
+            std::thread::sleep(Duration::from_millis(100));
+        }
+        panic!("Xvfb did not start on {}", x.display);
+    }
+
+    fn tool(&self, tool: &str, args: &[&str]) -> Output {
+        Command::new(tool)
+            .args(args)
+            .env("DISPLAY", &self.display)
+            .output()
+            .expect("run an X tool")
+    }
+
+    /// The viewer's window, once it exists.
+    fn window(&self) -> String {
+        let start = Instant::now();
+        loop {
+            let o = self.tool("xdotool", &["search", "--name", "glint view"]);
+            let id = String::from_utf8_lossy(&o.stdout)
+                .lines()
+                .next()
+                .map(str::to_string);
+            if let Some(id) = id {
+                return id;
+            }
+            assert!(start.elapsed() < Duration::from_secs(20), "no window");
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    }
+
+    fn title(&self, id: &str) -> String {
+        String::from_utf8_lossy(&self.tool("xdotool", &["getwindowname", id]).stdout)
+            .trim()
+            .to_string()
+    }
+
+    /// Waits until the title says the refinement is done, returning it.
+    fn done(&self, id: &str, after: &str) -> String {
+        let start = Instant::now();
+        loop {
+            let t = self.title(id);
+            if t.contains("[done") && t != after {
+                return t;
+            }
+            assert!(start.elapsed() < Duration::from_secs(60), "never done: {t}");
+            std::thread::sleep(Duration::from_millis(100));
+        }
+    }
+
+    /// Types `key` into the window as a user would (XTEST input to the
+    /// focused window: winit ignores sent events).
+    fn key(&self, id: &str, key: &str) {
+        self.tool("xdotool", &["windowfocus", "--sync", id]);
+        self.tool("xdotool", &["key", key]);
+    }
+
+    /// The window's pixels as the X server holds them.
+    fn capture(&self, id: &str, to: &Path) {
+        let o = self.tool("import", &["-window", id, &to.display().to_string()]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    }
+}
+
+impl Drop for Xvfb {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn glint(args: &[&str], dir: &Path) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_glint"))
+        .args(args)
+        .current_dir(dir)
+        .output()
+        .expect("run glint")
+}
+
+fn levels_off(a: &Path, b: &Path, dir: &Path) -> String {
+    let o = glint(
+        &[
+            "compare",
+            &a.display().to_string(),
+            &b.display().to_string(),
+        ],
+        dir,
+    );
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+/// The viewer, killed if the test ends (or fails) before it does.
+struct Viewer(Option<Child>);
+
+impl Viewer {
+    fn finish(mut self) -> Output {
+        self.0
+            .take()
+            .expect("running")
+            .wait_with_output()
+            .expect("glint view ends")
+    }
+}
+
+impl Drop for Viewer {
+    fn drop(&mut self) {
+        if let Some(c) = &mut self.0 {
+            let _ = c.kill();
+            let _ = c.wait();
+        }
+    }
+}
+
+fn view(x: &Xvfb, dir: &Path, backend: &str) -> Viewer {
+    Command::new(env!("CARGO_BIN_EXE_glint"))
+        .args([
+            "view", "s.scene", "out.png", "--width", "160", "--height", "120",
+        ])
+        .args(["--backend", backend])
+        .env("DISPLAY", &x.display)
+        .env_remove("WAYLAND_DISPLAY")
+        .env("GLINT_PIPELINE_CACHE", "off")
+        .current_dir(dir)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .map(|c| Viewer(Some(c)))
+        .expect("run glint view")
+}
+
+/// On the CPU reference and on the Vulkan device: the window shows, pixel
+/// for pixel, what `render` writes; the title has the samples and the
+/// error; OUT is written; `Q` closes it.
+#[test]
+fn the_window_shows_the_image_render_writes() {
+    let Some(x) = Xvfb::start() else { return };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let d = dir.path();
+    std::fs::write(d.join("s.scene"), SCENE).expect("scene");
+    let mut backends = vec!["cpu"];
+    if gpu().is_some() {
+        backends.push("gpu");
+    }
+    for backend in backends {
+        let reference = d.join(format!("render-{backend}.png"));
+        let o = glint(
+            &[
+                "render",
+                "s.scene",
+                &reference.display().to_string(),
+                "--width",
+                "160",
+                "--height",
+                "120",
+                "--backend",
+                backend,
+            ],
+            d,
+        );
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        let child = view(&x, d, backend);
+        let id = x.window();
+        let title = x.done(&id, "");
+        assert!(title.contains(" spp") && title.contains("RMSE"), "{title}");
+        let shot = d.join(format!("window-{backend}.png"));
+        x.capture(&id, &shot);
+        let cmp = levels_off(&shot, &reference, d);
+        assert!(cmp.contains("over threshold  0 pixels"), "{backend}: {cmp}");
+        x.key(&id, "q");
+        let out = child.finish();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let cmp = levels_off(&d.join("out.png"), &reference, d);
+        assert!(cmp.contains("over threshold  0 pixels"), "OUT: {cmp}");
+    }
+}
+
+/// A drag turns the camera and starts the refinement over; `C` prints the
+/// camera block, `S` saves the image, which `render` with that block
+/// makes too.
+#[test]
+fn a_drag_moves_the_camera_and_s_saves_what_render_makes() {
+    let Some(x) = Xvfb::start() else { return };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let d = dir.path();
+    std::fs::write(d.join("s.scene"), SCENE).expect("scene");
+    let child = view(&x, d, "cpu");
+    let id = x.window();
+    let first = x.done(&id, "");
+    x.tool("xdotool", &["mousemove", "--window", &id, "60", "60"]);
+    x.tool("xdotool", &["mousedown", "1"]);
+    for step in 1..=4 {
+        let to = (60 + 10 * step).to_string();
+        x.tool("xdotool", &["mousemove", "--window", &id, &to, "70"]);
+        std::thread::sleep(Duration::from_millis(30));
+    }
+    x.tool("xdotool", &["mouseup", "1"]);
+    let moved = x.done(&id, &first);
+    assert!(moved.contains("[done"), "{moved}");
+    for key in ["c", "s", "q"] {
+        x.key(&id, key);
+        std::thread::sleep(Duration::from_millis(300));
+    }
+    let out = child.finish();
+    let stdout = String::from_utf8_lossy(&out.stdout).into_owned();
+    let block = stdout
+        .lines()
+        .find(|l| l.starts_with("camera eye:"))
+        .unwrap_or_else(|| panic!("no camera block: {stdout}"))
+        .to_string();
+    assert_ne!(
+        block, "camera eye: 0 0 0 look: 0 0 -1 up: 0 1 0 fov: 60",
+        "the drag moved nothing"
+    );
+    let saved = d.join("s-view-1.png");
+    assert!(
+        saved.is_file() && d.join("s-view-1.exr").is_file(),
+        "{stdout}"
+    );
+    let moved_scene = SCENE.replacen(
+        "amb: 0.1 0.1 0.12\n",
+        &format!("amb: 0.1 0.1 0.12\n{block}\n"),
+        1,
+    );
+    std::fs::write(d.join("moved.scene"), &moved_scene).expect("scene");
+    let o = glint(
+        &[
+            "render",
+            "moved.scene",
+            "moved.png",
+            "--width",
+            "160",
+            "--height",
+            "120",
+            "--backend",
+            "cpu",
+        ],
+        d,
+    );
+    assert!(
+        o.status.success(),
+        "{}\n{moved_scene}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    let cmp = levels_off(&saved, &d.join("moved.png"), d);
+    assert!(cmp.contains("over threshold  0 pixels"), "{cmp}");
+}
+
+#[test]
+fn without_a_display_it_says_so_and_exits_2() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    std::fs::write(dir.path().join("s.scene"), SCENE).expect("scene");
+    let o = Command::new(env!("CARGO_BIN_EXE_glint"))
+        .args(["view", "s.scene", "out.png"])
+        .env_remove("DISPLAY")
+        .env_remove("WAYLAND_DISPLAY")
+        .current_dir(dir.path())
+        .output()
+        .expect("run glint");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(2), "{err}");
+    assert_eq!(
+        err.lines().filter(|l| l.starts_with("error:")).count(),
+        1,
+        "{err}"
+    );
+    assert!(
+        err.contains("DISPLAY") && err.contains("glint render"),
+        "{err}"
+    );
+    assert!(!dir.path().join("out.png").exists());
+}
