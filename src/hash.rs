@@ -3,6 +3,9 @@
 //! reproducible pseudo-random scenes: exact on every device.
 
 /// A 32-bit integer hash (lowbias32: two multiply-xorshift rounds).
+/// Inlined: every sample's random numbers come from it, and it lives in a
+/// module (and codegen unit) of its own.
+#[inline]
 pub fn hash_u32(x: u32) -> u32 {
     let mut h = x;
     h ^= h >> 16;

@@ -589,7 +589,9 @@ fn elements<'a>(
         let view_end = view.offset().checked_add(view.length())?;
         let start = view.offset().checked_add(a.offset())?;
         if count == 0 {
-            return Some(start..start);
+            // Nothing to read, wherever it claims to start (found by
+            // fuzzing: an offset past the buffer with no elements).
+            return Some(0..0);
         }
         let end = stride
             .checked_mul(count - 1)?

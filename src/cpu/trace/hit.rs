@@ -17,6 +17,7 @@ thread_local! {
     static RAYS: std::cell::Cell<[u64; 2]> = const { std::cell::Cell::new([0; 2]) };
 }
 
+#[inline]
 pub(crate) fn count_ray(kind: usize) {
     RAYS.with(|r| {
         let mut v = r.get();
