@@ -46,6 +46,10 @@ pub enum Error {
     },
     #[error("invalid option: {0}")]
     InvalidOption(String),
+    /// Parts that cannot be stitched into one image: missing or of
+    /// different renders.
+    #[error("cannot stitch: {0}")]
+    Parts(String),
     #[error("cannot write {path}: {reason}")]
     BadOutput { path: PathBuf, reason: String },
     #[error("the Embree harness {harness} failed on {scene}: {reason}")]
@@ -81,6 +85,7 @@ impl Error {
             | Error::UnsupportedImageFormat(_)
             | Error::SizeMismatch(..)
             | Error::InvalidOption(_)
+            | Error::Parts(_)
             | Error::BadOutput { .. } => 2,
             Error::Gpu(GpuError::Loader(_) | GpuError::NoDevice | GpuError::DeviceNotFound(_)) => 3,
             _ => 1,

@@ -117,7 +117,9 @@ pub(crate) fn write_dynamic(
     jpeg_quality: u8,
 ) -> Result<(), Error> {
     let kind = ImageFile::of(path)?;
-    write_atomically(path, |w| encode(img, kind, jpeg_quality, w))
+    write_atomically(path, |w| {
+        encode(img, kind, jpeg_quality, w).map_err(std::io::Error::other)
+    })
 }
 
 /// As `write_dynamic`, to standard output (encoded in memory first, as
@@ -218,14 +220,14 @@ pub fn check_writable(path: &Path) -> Result<(), Error> {
         })
 }
 
-type Sink<'a> = std::io::BufWriter<&'a mut std::fs::File>;
+pub(crate) type Sink<'a> = std::io::BufWriter<&'a mut std::fs::File>;
 
 /// Runs `encode` into a temporary file in `path`'s directory, which is then
 /// renamed over `path`: an interrupted or failed write never leaves a
 /// half-written image or clobbers a good one.
-fn write_atomically(
+pub(crate) fn write_atomically(
     path: &Path,
-    encode: impl FnOnce(&mut Sink<'_>) -> image::ImageResult<()>,
+    encode: impl FnOnce(&mut Sink<'_>) -> std::io::Result<()>,
 ) -> Result<(), Error> {
     let wrap = |error: std::io::Error| Error::WriteImage {
         path: path.to_path_buf(),
@@ -238,7 +240,7 @@ fn write_atomically(
     let (mut tmp, _registered) = PartialFile::create_in(dir).map_err(wrap)?;
     {
         let mut w = std::io::BufWriter::new(tmp.as_file_mut());
-        encode(&mut w).map_err(|e| wrap(std::io::Error::other(e)))?;
+        encode(&mut w).map_err(wrap)?;
         w.flush().map_err(wrap)?;
     }
     tmp.as_file().sync_all().map_err(wrap)?;

@@ -30,6 +30,7 @@ pub mod memory;
 pub mod mesh;
 pub mod methods;
 pub mod output;
+pub mod parts;
 pub mod plot;
 pub mod probe;
 pub mod progressive;

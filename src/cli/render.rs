@@ -16,7 +16,11 @@ use indicatif::{ProgressBar, ProgressStyle};
 use glint::framebuffer::ImageFile;
 use glint::region::Crop;
 
-use super::{print_warnings, read_scene, BackendArg, EffectArgs, MethodsArg, PrecisionArg};
+use super::values::{parse_error_target, parse_pixel, parse_range, parse_rgb, parse_seconds};
+use super::{
+    print_warnings, read_scene, validation_verdict, BackendArg, EffectArgs, MethodsArg,
+    PrecisionArg,
+};
 
 /// Where a render's messages go: stdout, unless the image goes there.
 #[derive(Clone, Copy)]
@@ -172,6 +176,14 @@ pub struct RenderArgs {
     /// `glint stitch` to join with the other parts, bit for bit.
     #[arg(long, value_name = "X0,Y0,X1,Y1", value_parser = Crop::parse, conflicts_with_all = ["pixel", "frames", "target_error", "time_limit"])]
     crop: Option<Crop>,
+    /// One task's share of a render spread over machines: part I of N
+    /// (counted from 0), or slurm/N, k8s/N, env/N to read I from
+    /// SLURM_ARRAY_TASK_ID or JOB_COMPLETION_INDEX. Writes OUT's part file
+    /// (out.png -> out.part03-of-16.png) for `glint stitch OUT --parts N`;
+    /// with --frames, the I-th share of the frames. A part already done for
+    /// the same render is kept, so a requeued task redoes only what is missing.
+    #[arg(long, value_name = "I/N", value_parser = glint::parts::PartArg::parse, conflicts_with_all = ["pixel", "crop", "frame_range", "target_error", "time_limit", "show"])]
+    part: Option<glint::parts::PartArg>,
     /// Preview: 1 sample per pixel, 1 shadow sample, no reflection, half
     /// the width and height; flags given beside it win.
     #[arg(long)]
@@ -197,68 +209,12 @@ impl RenderArgs {
     }
 }
 
-pub(super) fn parse_error_target(s: &str) -> Result<f64, String> {
-    match s.trim().parse::<f64>() {
-        Ok(v) if v.is_finite() && v > 0.0 && v < 1.0 => Ok(v),
-        _ => Err(format!(
-            "expected an RMSE on linear values between 0 and 1 (e.g. 0.005), found `{s}`"
-        )),
-    }
-}
-
 #[derive(Clone, Copy, Debug, clap::ValueEnum)]
 enum FrameFormat {
     Jpg,
     Png,
     Ppm,
     Exr,
-}
-
-fn parse_range(s: &str) -> Result<[u32; 2], String> {
-    let parsed = s
-        .split_once('-')
-        .and_then(|(a, b)| Some([a.trim().parse().ok()?, b.trim().parse().ok()?]));
-    match parsed {
-        Some([a, b]) if a <= b => Ok([a, b]),
-        _ => Err(format!(
-            "expected FIRST-LAST with FIRST <= LAST (e.g. 0-99), found `{s}`"
-        )),
-    }
-}
-
-fn parse_pixel(s: &str) -> Result<[u32; 2], String> {
-    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
-    match parts.as_slice() {
-        [x, y] => match (x.parse(), y.parse()) {
-            (Ok(x), Ok(y)) => Ok([x, y]),
-            _ => Err(format!(
-                "expected X,Y as two whole numbers (e.g. 320,240), found `{s}`"
-            )),
-        },
-        _ => Err(format!("expected X,Y (e.g. 320,240), found `{s}`")),
-    }
-}
-
-pub(super) fn parse_seconds(s: &str) -> Result<f64, String> {
-    match s.trim().parse::<f64>() {
-        Ok(v) if v.is_finite() && v > 0.0 && v <= 1e6 => Ok(v),
-        _ => Err(format!(
-            "expected a number of seconds above 0 (e.g. 120), found `{s}`"
-        )),
-    }
-}
-
-pub(super) fn parse_rgb(s: &str) -> Result<[f32; 3], String> {
-    let parts: Vec<&str> = s.split(',').map(str::trim).collect();
-    let values: Result<Vec<f32>, _> = parts.iter().map(|p| p.parse::<f32>()).collect();
-    match values {
-        Ok(v) if v.len() == 3 && v.iter().all(|c| (0.0..=1.0).contains(c)) => {
-            Ok([v[0], v[1], v[2]])
-        }
-        _ => Err(format!(
-            "expected R,G,B with each in [0, 1] (e.g. 0,0,0 for black), found `{s}`"
-        )),
-    }
 }
 
 /// `<scene stem>.jpg`, or `stdin.jpg` for a scene read from standard input.
@@ -305,14 +261,25 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
                 .into());
             }
         }
-        (Out::File(path), None) if args.pixel.is_none() => match &args.crop {
-            Some(_) => {
+        (Out::File(path), None) if args.pixel.is_none() => match (&args.crop, &args.part) {
+            (Some(_), _) => {
                 glint::region::check_part_format(path)?;
                 check_output(path)?;
             }
-            None => check_output(path)?,
+            (None, Some(part)) => {
+                let part = super::part::resolve(part)?;
+                glint::framebuffer::ImageFile::of(path)?;
+                check_output(&glint::parts::part_path(path, part.index, part.count))?;
+            }
+            (None, None) => check_output(path)?,
         },
         _ => {}
+    }
+    if let (Out::Stdout, Some(_)) = (&out, &args.part) {
+        return Err(glint::Error::InvalidOption(
+            "--part writes a part file beside OUT for `glint stitch`; name OUT, not `-`".into(),
+        )
+        .into());
     }
     if let Some(crop) = &args.crop {
         crop.check(args.width, args.height)?;
@@ -410,6 +377,18 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         return Ok(ExitCode::SUCCESS);
     }
 
+    if let Some(part) = &args.part {
+        let part = super::part::resolve(part)?;
+        return super::part::render(
+            &args.scene,
+            &scene,
+            &options,
+            part,
+            out.path(),
+            args.verbose,
+        );
+    }
+
     if args.target_error.is_some() || args.time_limit.is_some() {
         return render_progressive(&scene, &options, &args, &out, defaulted, parse_time, say);
     }
@@ -477,72 +456,9 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         glint::view::show(output.framebuffer.clone(), title)?;
     }
     if args.stats || args.verbose {
-        say.line(stats(&output, &timings));
+        say.line(super::summary::stats(&output, &timings));
     }
     Ok(ExitCode::SUCCESS)
-}
-
-/// The end-of-render summary (`--stats`, `-v`).
-fn stats(output: &glint::render::RenderOutput, timings: &glint::timing::Timings) -> String {
-    use glint::timing::{CLOSEST_RAYS, SHADOW_RAYS};
-    let mut s = String::from("stats:");
-    let rendering = timings
-        .phases
-        .iter()
-        .filter(|(n, _)| matches!(*n, "dispatch" | "readback" | "cpu render"))
-        .map(|p| p.1)
-        .sum::<Duration>();
-    if timings.has_count(CLOSEST_RAYS) {
-        let closest = timings.counted(CLOSEST_RAYS);
-        let shadow = timings.counted(SHADOW_RAYS);
-        // Every sample casts one primary ray; the other closest-hit rays
-        // are reflections.
-        let primary = output.samples.min(closest);
-        let all = closest + shadow;
-        let rate = all as f64 / rendering.as_secs_f64().max(1e-9);
-        s.push_str(&format!(
-            "\n  rays        {all} in all: {primary} primary, {} reflected, {shadow} shadow; \
-             {:.2} M rays/s over {:.3} s of rendering",
-            closest - primary,
-            rate / 1e6,
-            rendering.as_secs_f64()
-        ));
-    } else {
-        s.push_str(
-            "\n  rays        not counted: one pass could cast more than the shader's 32-bit \
-             counters hold (lower --pass-budget or --tile to count them)",
-        );
-    }
-    if timings.has_count(glint::timing::GPU_TIME_NS) {
-        s.push_str(&format!(
-            "\n  gpu time    {:.3} ms in the dispatches (Vulkan timestamps)",
-            timings.counted(glint::timing::GPU_TIME_NS) as f64 / 1e6
-        ));
-    }
-    if timings.has_count(glint::timing::CPU_TIME_NS) {
-        s.push_str(&format!(
-            "\n  cpu time    {:.3} ms on the render's threads, all together",
-            timings.counted(glint::timing::CPU_TIME_NS) as f64 / 1e6
-        ));
-    }
-    s.push_str(&format!("\n  samples     {}", output.samples));
-    s.push_str(&format!("\n  bvh         {}", output.bvh));
-    for (name, d) in &timings.phases {
-        s.push_str(&format!("\n  {name:<11} {:.3} ms", d.as_secs_f64() * 1e3));
-    }
-    s.push_str(&format!(
-        "\n  {:<11} {:.3} ms",
-        "total",
-        timings.total().as_secs_f64() * 1e3
-    ));
-    match glint::memory::peak_resident() {
-        Some(b) => s.push_str(&format!(
-            "\n  peak memory {} resident",
-            glint::memory::human(b)
-        )),
-        None => s.push_str("\n  peak memory unknown on this system"),
-    }
-    s
 }
 
 /// `--frames`: the range fits and OUT can be the frames' directory.
@@ -661,7 +577,7 @@ fn render_progressive(
         say.line(format!("timings (all passes):\n{}", done.output.timings));
     }
     if args.stats || args.verbose {
-        say.line(stats(&done.output, &done.output.timings));
+        say.line(super::summary::stats(&done.output, &done.output.timings));
     }
     let reached = match (args.target_error, r.estimated_rmse) {
         (Some(t), Some(e)) => e <= t,
@@ -708,18 +624,6 @@ fn out_is_8_bit(out: &Out) -> bool {
     }
 }
 
-/// A render the validation layer complained about may be wrong: an error
-/// (exit 1), before anything is written.
-fn validation_verdict(messages: u32) -> anyhow::Result<()> {
-    if messages > 0 {
-        anyhow::bail!(
-            "the Vulkan validation layer reported {messages} message(s) (printed above); \
-             the result may be wrong, so nothing was written. Please report this with the scene"
-        );
-    }
-    Ok(())
-}
-
 /// Renders frames of an animation with one `Renderer` (device and pipelines
 /// built once), a progress bar over frames, each frame written as it is done.
 fn animate(
@@ -729,9 +633,33 @@ fn animate(
     frames: u32,
     dir: &Path,
 ) -> anyhow::Result<ExitCode> {
-    let [first, last] = args.frame_range.unwrap_or([0, frames - 1]);
+    let share = match &args.part {
+        Some(part) => {
+            let part = super::part::resolve(part)?;
+            match glint::parts::cut::frame_share(frames, part.index, part.count) {
+                Some(share) => Some((part, share)),
+                None => {
+                    println!(
+                        "{part} has no frames ({} parts share {frames} frames); nothing to do",
+                        part.count
+                    );
+                    return Ok(ExitCode::SUCCESS);
+                }
+            }
+        }
+        None => None,
+    };
+    let [first, last] = share.map_or(args.frame_range.unwrap_or([0, frames - 1]), |s| s.1);
     std::fs::create_dir_all(dir)
         .with_context(|| format!("creating the frame directory {}", dir.display()))?;
+    if share.is_some() {
+        let settings = format!(
+            "{} frames {frames}",
+            super::part::settings_text(options, scene)
+        );
+        let digest = glint::parts::stamp::render_digest(scene, &settings);
+        super::part::claim_frames(dir, &digest)?;
+    }
     let renderer = Renderer::new(options)?;
     if let Some(note) = renderer.note() {
         eprintln!("note: {note}");
@@ -759,12 +687,19 @@ fn animate(
         .progress_chars("=> "),
     );
     let start = Instant::now();
+    let mut kept = 0;
     for i in first..=last {
+        let path = dir.join(format!("{i:0digits$}.{ext}"));
+        // A requeued task of an array keeps the frames it finished.
+        if share.is_some() && super::part::frame_done(&path) {
+            kept += 1;
+            bar.inc(1);
+            continue;
+        }
         let at = scene.at_time(effects.frame_time(i));
         let output = renderer.render(&at, &|_, _| {})?;
         validation_verdict(renderer.validation_messages())
             .with_context(|| format!("rendering frame {i}"))?;
-        let path = dir.join(format!("{i:0digits$}.{ext}"));
         write_framebuffer(&output.framebuffer, &path, args.quality)
             .with_context(|| format!("writing frame {i}"))?;
         if args.verbose {
@@ -782,5 +717,8 @@ fn animate(
         start.elapsed().as_secs_f64(),
         effects.fps
     );
+    if let Some((part, _)) = share {
+        println!("({part} of the frames; {kept} of them were already there and kept)");
+    }
     Ok(ExitCode::SUCCESS)
 }

@@ -8,7 +8,7 @@ use std::time::Duration;
 use glint::progressive::StopAt;
 use glint::render::{Backend, RenderOptions};
 
-use super::render::{parse_error_target, parse_rgb, parse_seconds};
+use super::values::{parse_error_target, parse_rgb, parse_seconds};
 use super::{BackendArg, EffectArgs, PrecisionArg};
 
 #[derive(clap::Args, Debug)]

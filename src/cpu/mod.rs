@@ -62,6 +62,24 @@ pub fn render_where(
     keep: &(dyn Fn(u32, u32) -> bool + Sync),
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> (Framebuffer, Work) {
+    let rows = 0..camera.height;
+    render_rows(scene, bvh, geometry, camera, options, rows, keep, progress)
+}
+
+/// As `render_where`, knowing that every pixel `keep` takes lies in `rows`:
+/// the others are not visited at all (a part of a large image pays for its
+/// own rows only, not for asking `keep` of every pixel).
+#[allow(clippy::too_many_arguments)]
+pub fn render_rows(
+    scene: &Scene,
+    bvh: &Bvh,
+    geometry: &Geometry,
+    camera: &Camera,
+    options: &CpuOptions,
+    rows: std::ops::Range<u32>,
+    keep: &(dyn Fn(u32, u32) -> bool + Sync),
+    progress: &(dyn Fn(u64, u64) + Sync),
+) -> (Framebuffer, Work) {
     fn colour<R: Real>(s: &CpuScene<R>, x: u32, y: u32) -> [f32; 3] {
         R::v3_to_f32(R::clamp01(pixel_color(s, x, y)))
     }
@@ -70,16 +88,20 @@ pub fn render_where(
         Geometry::F32(g) => {
             let s = CpuScene::new(scene, bvh, g, camera, options);
             if options.packets && packet::applies(&s) {
-                per_band(&s, progress, packet::TILE[1], |s, y0, band| {
+                per_band(&s, progress, packet::TILE[1], rows, |s, y0, band| {
                     packet::fill_band(s, y0, band, keep);
                 })
             } else {
-                per_pixel(&s, progress, |s, x, y| pixel(x, y, &|| colour(s, x, y)))
+                per_pixel(&s, progress, rows, |s, x, y| {
+                    pixel(x, y, &|| colour(s, x, y))
+                })
             }
         }
         Geometry::F64(g) => {
             let s = CpuScene::new(scene, bvh, g, camera, options);
-            per_pixel(&s, progress, |s, x, y| pixel(x, y, &|| colour(s, x, y)))
+            per_pixel(&s, progress, rows, |s, x, y| {
+                pixel(x, y, &|| colour(s, x, y))
+            })
         }
     };
     let fb = Framebuffer {
@@ -117,6 +139,33 @@ pub fn prepare(scene: &Scene, bvh: &Bvh, options: &CpuOptions) -> Geometry {
     }
 }
 
+/// Rays cast (closest-hit and shadow, all samples) by the pixels `xs` x
+/// `ys`, row-major: the cost estimate behind `parts::cut`. Counted in f32
+/// whatever the render's precision, so every node of a cluster gets the
+/// same counts from the same binary.
+pub fn ray_costs(
+    scene: &Scene,
+    bvh: &Bvh,
+    geometry: &CpuGeometry<f32>,
+    camera: &Camera,
+    options: &CpuOptions,
+    xs: &[u32],
+    ys: &[u32],
+) -> Vec<u64> {
+    let s = CpuScene::new(scene, bvh, geometry, camera, options);
+    ys.par_iter()
+        .flat_map_iter(|&y| {
+            let s = &s;
+            xs.iter().map(move |&x| {
+                let before = trace::rays_cast();
+                std::hint::black_box(pixel_color(s, x, y));
+                let after = trace::rays_cast();
+                (after[0] - before[0]) + (after[1] - before[1])
+            })
+        })
+        .collect()
+}
+
 /// Each pixel's primary hit and shadow verdicts, as the shader's `probe_tile`.
 pub fn probe(scene: &Scene, bvh: &Bvh, camera: &Camera, options: &CpuOptions) -> ProbeImage {
     fn record<R: Real>(s: &CpuScene<R>, x: u32, y: u32) -> ProbePixel {
@@ -137,11 +186,13 @@ pub fn probe(scene: &Scene, bvh: &Bvh, camera: &Camera, options: &CpuOptions) ->
         Geometry::F32(g) => per_pixel(
             &CpuScene::new(scene, bvh, g, camera, &options),
             none,
+            0..camera.height,
             record,
         ),
         Geometry::F64(g) => per_pixel(
             &CpuScene::new(scene, bvh, g, camera, &options),
             none,
+            0..camera.height,
             record,
         ),
     };
@@ -217,10 +268,11 @@ fn path_in<R: Real>(scene: &CpuScene<R>, [x, y]: [u32; 2]) -> PathRecord {
 fn per_pixel<R: Real, T: Send + Default + Clone>(
     scene: &CpuScene<R>,
     progress: &(dyn Fn(u64, u64) + Sync),
+    active: std::ops::Range<u32>,
     f: impl Fn(&CpuScene<R>, u32, u32) -> T + Sync,
 ) -> (Vec<T>, Work) {
     let w = scene.size[0] as usize;
-    per_band(scene, progress, 1, |scene, y, row| {
+    per_band(scene, progress, 1, active, |scene, y, row| {
         for (x, px) in row[..w].iter_mut().enumerate() {
             *px = f(scene, x as u32, y);
         }
@@ -232,11 +284,13 @@ fn per_pixel<R: Real, T: Send + Default + Clone>(
 /// taken in `spread_order` so that `progress(rows_done, rows)` advances at
 /// an even pace: rows in order would finish the cheap sky first and the
 /// costly floor last, and an ETA from them would be wrong by the ratio.
+/// Bands that miss the rows `active` are left as they start.
 /// Also returns the rays `f` cast and the threads' CPU time (`Work`).
 fn per_band<R: Real, T: Send + Default + Clone>(
     scene: &CpuScene<R>,
     progress: &(dyn Fn(u64, u64) + Sync),
     rows: u32,
+    active: std::ops::Range<u32>,
     f: impl Fn(&CpuScene<R>, u32, &mut [T]) + Sync,
 ) -> (Vec<T>, Work) {
     use std::sync::atomic::{AtomicU64, Ordering};
@@ -252,8 +306,11 @@ fn per_band<R: Real, T: Send + Default + Clone>(
         .collect();
     let ordered: Vec<(u32, &mut [T])> = spread_order(bands.len() as u32)
         .into_iter()
+        .filter(|&b| b * rows < active.end && (b + 1) * rows > active.start)
         .filter_map(|b| Some((b * rows, bands[b as usize].take()?)))
         .collect();
+    let visited = ordered.iter().map(|(_, b)| b.len() as u64).sum::<u64>() / u64::from(w.max(1));
+    done.store(u64::from(h) - visited, Ordering::Relaxed);
     ordered.into_par_iter().for_each(|(y0, band)| {
         // A band runs on one thread from start to end, so the thread's
         // counters moved by this band's rays alone.

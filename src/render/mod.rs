@@ -3,138 +3,34 @@
 use std::time::{Duration, Instant};
 
 use crate::bvh::Bvh;
-use crate::camera::{Camera, DEFAULT_HEIGHT, DEFAULT_WIDTH};
+use crate::camera::Camera;
 use crate::cpu::{self, CpuOptions, Precision};
 use crate::features::Features;
-use crate::gpu::{Context, ContextOptions, DeviceSelector, GpuRenderOptions, GpuRenderer};
+use crate::gpu::{Context, ContextOptions, GpuRenderOptions, GpuRenderer};
 use crate::layout::GpuScene;
 use crate::memory::{self, MemoryNeed};
-use crate::methods::Methods;
 pub use crate::output::RenderOutput;
+use crate::parts::cut::{Costs, Span};
 use crate::probe::{PathRecord, ProbeImage};
 use crate::progressive::{
     Accumulator, Blocks, PassReport, Progressive, StopAt, Stopped, ADAPTIVE_FIRST_PASSES,
     MIN_PASSES_FOR_TARGET,
 };
 use crate::region::Crop;
-use crate::scene::{Effects, Scene, Settings};
+use crate::scene::{Effects, Scene};
 use crate::timing::Timings;
 use crate::Error;
 
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
-pub enum Backend {
-    /// The best hardware Vulkan device; the CPU reference when there is
-    /// none, or only a software one such as lavapipe, which is slower than
-    /// the CPU reference on the same cores (with a note saying why).
-    /// A `device` asked for is always used.
-    #[default]
-    Auto,
-    Gpu,
-    Cpu,
-}
+mod options;
+mod region;
 
-#[derive(Clone, Debug)]
-pub struct RenderOptions {
-    pub width: u32,
-    pub height: u32,
-    /// Colour of rays that hit nothing, linear [0, 1].
-    pub background: [f32; 3],
-    pub backend: Backend,
-    pub device: Option<DeviceSelector>,
-    /// CPU reference only.
-    pub precision: Precision,
-    /// Enable the Vulkan validation layer when it is installed.
-    pub validation: bool,
-    /// Intersection and offset methods on either backend; overrides
-    /// `gpu.methods`.
-    pub methods: Methods,
-    /// Overrides of the scene's own settings (`--spp`, `--reflect`, ...).
-    pub settings: Settings,
-    /// GPU: compile every effect in and switch them by the settings alone
-    /// (the generic shader), instead of specialising for the scene.
-    pub generic: bool,
-    /// GPU tile edge and pass budget; `None`: the device's driver profile
-    /// (`gpu::driver`), which `gpu` then holds once a device is chosen.
-    pub tile: Option<u32>,
-    pub pass_budget: Option<u32>,
-    /// CPU f32: trace pixels in packets where they apply (`cpu::packet`);
-    /// off, every ray alone, which keeps the shader's choice between two
-    /// surfaces a ray meets at exactly one t (`glint check`'s twin).
-    pub packets: bool,
-    /// Keep built GPU pipelines on disk here (`gpu::cache::default_dir`);
-    /// `None`: compile them every run.
-    pub pipeline_cache: Option<std::path::PathBuf>,
-    pub gpu: GpuRenderOptions,
-}
+pub use options::{Backend, RenderOptions};
+use region::Region;
 
-impl Default for RenderOptions {
-    fn default() -> Self {
-        RenderOptions {
-            width: DEFAULT_WIDTH,
-            height: DEFAULT_HEIGHT,
-            background: [1.0; 3],
-            backend: Backend::Auto,
-            device: None,
-            precision: Precision::F32,
-            validation: false,
-            methods: Methods::Robust,
-            settings: Settings::default(),
-            generic: false,
-            tile: None,
-            pass_budget: None,
-            packets: true,
-            pipeline_cache: None,
-            gpu: GpuRenderOptions::default(),
-        }
-    }
-}
-
-impl RenderOptions {
-    /// The scene's settings with these options' overrides applied.
-    pub fn effects(&self, scene: &Scene) -> Effects {
-        Effects::resolve(&self.settings.or(scene.settings))
-    }
-
-    /// What the GPU shader is specialised for when rendering `scene`.
-    pub fn features(&self, scene: &Scene) -> Features {
-        if self.generic {
-            Features::ALL
-        } else {
-            Features::of(scene, &self.effects(scene))
-        }
-    }
-}
-
-/// Which pixels a render computes; the others are left 0.
-#[derive(Clone, Copy)]
-enum Region<'a> {
-    All,
-    /// The active blocks of a progressive render.
-    Blocks(&'a Blocks),
-    Crop(Crop),
-}
-
-impl Region<'_> {
-    fn pixels(&self, width: u32, height: u32) -> u64 {
-        match self {
-            Region::All => u64::from(width) * u64::from(height),
-            Region::Blocks(b) => b
-                .rects()
-                .iter()
-                .map(|r| u64::from(r[2]) * u64::from(r[3]))
-                .sum(),
-            Region::Crop(c) => c.pixels(),
-        }
-    }
-
-    fn keeps(&self, x: u32, y: u32) -> bool {
-        match self {
-            Region::All => true,
-            Region::Blocks(b) => b.is_active(x, y),
-            Region::Crop(c) => c.contains(x, y),
-        }
-    }
-}
+// A part's ends fall between the CPU's packet bands and the GPU's
+// workgroups (`parts::cut::GRAIN_ROWS`).
+const _: () = assert!(crate::parts::cut::GRAIN_ROWS.is_multiple_of(cpu::packet::TILE[1]));
+const _: () = assert!(crate::parts::cut::GRAIN_ROWS.is_multiple_of(crate::layout::WORKGROUP_SIZE));
 
 /// Where the work runs, chosen once from `RenderOptions`.
 enum Engine {
@@ -385,6 +281,67 @@ impl Renderer {
         self.render_region(scene, Region::Crop(crop), progress)
     }
 
+    /// Part `index` of `count` (`parts::cut`, balanced by a cost estimate
+    /// from a CPU probe of a few pixels), each pixel with the value a full
+    /// render gives it; returns its pixels too. Every task of an array
+    /// cuts alike, from the same scene and settings.
+    pub fn render_part(
+        &self,
+        scene: &Scene,
+        index: u32,
+        count: u32,
+        progress: &(dyn Fn(u64, u64) + Sync),
+    ) -> Result<(RenderOutput, Span), Error> {
+        let (w, h) = (self.options.width, self.options.height);
+        if u64::from(count) > u64::from(w) * u64::from(h) || index >= count {
+            return Err(Error::InvalidOption(format!(
+                "part {index} of {count}: a {w}x{h} image has {} pixels, and each part holds one at least",
+                u64::from(w) * u64::from(h)
+            )));
+        }
+        let scene = &*scene.in_view_space();
+        let mut timings = self.take_setup_timings();
+        let p = self.prepare(scene, &mut timings);
+        let packed = self.pack(scene, &p, &mut timings);
+        let start = Instant::now();
+        let spans = crate::parts::cut::cut(&self.part_costs(scene, &p, &packed, count), count);
+        timings.add("part cut", start.elapsed());
+        let span = spans[index as usize];
+        let out =
+            self.render_prepared(scene, &p, &packed, timings, Region::Span(span), progress)?;
+        Ok((out, span))
+    }
+
+    /// Rays cast by a sparse grid of pixels as costs per row: 1/512 of the
+    /// image split over the parts, so the parts' probes together trace
+    /// 1/512 of its pixels. The probe traces them one by one from a cold
+    /// cache, 3 (test1) to 10 (the 2M grid) times a packet's cost a pixel:
+    /// at 1/64 the probes of 16 parts of test1 at 1920x1080 cost 4.6% of
+    /// the whole render, at 1/256 the 2M grid's cost 4%. Eight columns a
+    /// row: the cut needs each row's cost, not where in the row it lies.
+    fn part_costs(&self, scene: &Scene, p: &Prepared, packed: &Packed, count: u32) -> Costs {
+        let (w, h) = (p.camera.width, p.camera.height);
+        let budget = (u64::from(w) * u64::from(h) / (512 * u64::from(count))).clamp(64, 1 << 12);
+        let cols = w.min(8);
+        let rows = (budget / u64::from(cols)).clamp(1, u64::from(h)) as u32;
+        let at = |i: u32, n: u32, of: u32| {
+            ((2 * u64::from(i) + 1) * u64::from(of) / (2 * u64::from(n))) as u32
+        };
+        let xs: Vec<u32> = (0..cols).map(|i| at(i, cols, w)).collect();
+        let ys: Vec<u32> = (0..rows).map(|j| at(j, rows, h)).collect();
+        let options = self.cpu_options(p, Precision::F32);
+        let built;
+        let geometry = match packed {
+            Packed::Cpu(cpu::Geometry::F32(g)) => g,
+            _ => {
+                built = crate::cpu::trace::CpuGeometry::new(scene, &p.bvh, &p.effects);
+                &built
+            }
+        };
+        let probe = cpu::ray_costs(scene, &p.bvh, geometry, &p.camera, &options, &xs, &ys);
+        Costs::from_probe(w, h, &probe, cols)
+    }
+
     fn render_region(
         &self,
         scene: &Scene,
@@ -598,6 +555,14 @@ impl Renderer {
                         &[c.rect()],
                         progress,
                     )?,
+                    Region::Span(s) => renderer.render_rects(
+                        packed,
+                        &p.camera,
+                        bg,
+                        &options,
+                        &s.rects(),
+                        progress,
+                    )?,
                 };
                 timings.extend(&gpu_timings);
                 // Over the renderer's life: how its pipelines came to be.
@@ -612,12 +577,13 @@ impl Renderer {
                 need.check(memory::available())?;
                 let start = Instant::now();
                 let options = self.cpu_options(p, *precision);
-                let (framebuffer, work) = cpu::render_where(
+                let (framebuffer, work) = cpu::render_rows(
                     scene,
                     &p.bvh,
                     geometry,
                     &p.camera,
                     &options,
+                    region.rows(p.camera.height),
                     &|x, y| region.keeps(x, y),
                     progress,
                 );
