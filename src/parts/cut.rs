@@ -70,12 +70,11 @@ impl fmt::Display for Span {
 /// Parts start and end on a multiple of this many rows where the image has
 /// rows enough (else on whole rows, else anywhere). A part that starts
 /// inside a band of the CPU's packet tiles (`cpu::packet::TILE`, 8 rows
-/// tall) traces that band's tiles as packets of a few lanes, at nearly a
-/// full packet's cost: before parts were snapped, 16 parts of test1 at
-/// 1920x1080 spent 7.7% more thread time than the whole (min of 5 runs,
-/// one thread). The GPU's workgroups are 8 x 8 pixels, so it gains too.
-/// The grain is a constant, not a device's, because every node of a mixed
-/// cluster must cut alike.
+/// tall) would trace that band's tiles as packets of a few lanes, at nearly
+/// a full packet's cost each; the GPU's workgroups are 8 x 8 pixels, and a
+/// part cut inside one leaves its other invocations idle. The grain is a
+/// constant, not a device's, because every node of a mixed cluster must cut
+/// alike.
 pub const GRAIN_ROWS: u32 = 8;
 
 /// The estimated cost of each row's pixels: `per_pixel[y]` for every pixel
