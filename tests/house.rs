@@ -66,6 +66,68 @@ fn code(text: &str) -> String {
     out
 }
 
+/// `text` with every string literal's contents dropped (`"..."`, raw
+/// strings too), so that a message such as "...; use a .png file" is not
+/// read as a `use` item. Char literals are kept whole, lifetimes left be.
+fn without_strings(text: &str) -> String {
+    let b = text.as_bytes();
+    let mut out = String::with_capacity(text.len());
+    let mut i = 0;
+    let mut kept = 0;
+    let ident = |c: u8| c.is_ascii_alphanumeric() || c == b'_';
+    while i < b.len() {
+        let raw = b[i] == b'r' && (i == 0 || !ident(b[i - 1])) && {
+            let hashes = b[i + 1..].iter().take_while(|&&c| c == b'#').count();
+            b.get(i + 1 + hashes) == Some(&b'"')
+        };
+        if b[i] == b'\'' {
+            // A char literal ('x', '\n', '\u{..}') or a lifetime ('a).
+            let close = if b.get(i + 1) == Some(&b'\\') {
+                b[i + 2..]
+                    .iter()
+                    .position(|&c| c == b'\'')
+                    .map(|p| i + 2 + p)
+            } else {
+                let len = text[i + 1..].chars().next().map_or(1, char::len_utf8);
+                (b.get(i + 1 + len) == Some(&b'\'')).then_some(i + 1 + len)
+            };
+            i = close.map_or(i + 1, |c| c + 1);
+        } else if raw || b[i] == b'"' {
+            let hashes = if raw {
+                b[i + 1..].iter().take_while(|&&c| c == b'#').count()
+            } else {
+                0
+            };
+            let open = if raw { i + 1 + hashes } else { i };
+            out.push_str(&text[kept..open + 1]);
+            let mut j = open + 1;
+            loop {
+                match b.get(j) {
+                    None => break,
+                    Some(b'\\') if !raw => j += 2,
+                    Some(b'"')
+                        if b[j + 1..]
+                            .iter()
+                            .take(hashes)
+                            .filter(|&&c| c == b'#')
+                            .count()
+                            == hashes =>
+                    {
+                        break
+                    }
+                    _ => j += 1,
+                }
+            }
+            kept = j.min(b.len());
+            i = (j + 1 + hashes).min(b.len());
+        } else {
+            i += 1;
+        }
+    }
+    out.push_str(&text[kept.min(text.len())..]);
+    out
+}
+
 /// Paths that start with `crate::` or `super::` (in `use` trees too), as
 /// module paths resolved against `module`.
 fn references(module: &[String], is_mod_file: bool, text: &str) -> BTreeSet<Vec<String>> {
@@ -210,7 +272,7 @@ fn graph() -> Graph {
         let text = std::fs::read_to_string(file).expect("read source");
         let is_mod = file.ends_with("mod.rs") || file.ends_with("lib.rs");
         let mut to = BTreeSet::new();
-        for path in references(module, is_mod, &code(&text)) {
+        for path in references(module, is_mod, &without_strings(&code(&text))) {
             if let Some(t) = target(&path, &modules) {
                 // A module's use of its own children counts (`pub use
                 // child::X` included): a child that imports from its parent
@@ -358,6 +420,24 @@ fn no_source_file_is_past_800_lines() {
         })
         .collect();
     assert!(long.is_empty(), "split these: {long:?}");
+}
+
+/// A message that reads like code ("...; use crate::x") is not an import,
+/// and char literals and raw strings do not throw the reading off.
+#[test]
+fn string_literals_are_not_read_as_imports() {
+    let text = r##"const M: &str = "a; use crate::render::x"; let q = '"';
+        let r = r#"use crate::gpu::y"#; fn f<'a>(s: &'a str) {} use crate::scene::Scene;"##;
+    let plain = without_strings(text);
+    assert!(
+        !plain.contains("render") && !plain.contains("gpu"),
+        "{plain}"
+    );
+    let refs = references(&["cli".to_string()], false, &plain);
+    assert!(!refs.is_empty(), "the real import was missed");
+    assert!(refs.iter().all(|p| p[0] == "scene"), "{refs:?}");
+    let read_raw = references(&["cli".to_string()], false, text);
+    assert!(read_raw.iter().any(|p| p[0] == "render"), "{read_raw:?}");
 }
 
 /// Driver knowledge in one room: no other file looks at a driver's name.
