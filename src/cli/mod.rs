@@ -153,6 +153,25 @@ pub enum PrecisionArg {
     F64,
 }
 
+impl From<BackendArg> for glint::render::Backend {
+    fn from(b: BackendArg) -> Self {
+        match b {
+            BackendArg::Auto => Self::Auto,
+            BackendArg::Gpu => Self::Gpu,
+            BackendArg::Cpu => Self::Cpu,
+        }
+    }
+}
+
+impl From<PrecisionArg> for glint::cpu::Precision {
+    fn from(p: PrecisionArg) -> Self {
+        match p {
+            PrecisionArg::F32 => Self::F32,
+            PrecisionArg::F64 => Self::F64,
+        }
+    }
+}
+
 impl Cli {
     /// What this command can do without a Vulkan device (printed after an
     /// error with exit 3); each names a flag the command accepts.

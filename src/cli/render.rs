@@ -4,12 +4,11 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use clap::Args;
-use glint::cpu::Precision;
 use glint::framebuffer::{check_output, write_framebuffer, DEFAULT_JPEG_QUALITY};
 use glint::gpu::DeviceSelector;
 use glint::methods::Methods;
 use glint::progressive::{PassReport, StopAt, Stopped};
-use glint::render::{pixel_path, Backend, RenderOptions, Renderer};
+use glint::render::{pixel_path, RenderOptions, Renderer};
 use glint::scene::Scene;
 use indicatif::{ProgressBar, ProgressStyle};
 
@@ -302,16 +301,9 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         width: args.width,
         height: args.height,
         background: args.background,
-        backend: match args.backend {
-            BackendArg::Auto => Backend::Auto,
-            BackendArg::Gpu => Backend::Gpu,
-            BackendArg::Cpu => Backend::Cpu,
-        },
+        backend: args.backend.into(),
         device: args.device.as_deref().map(DeviceSelector::parse),
-        precision: match args.precision {
-            PrecisionArg::F32 => Precision::F32,
-            PrecisionArg::F64 => Precision::F64,
-        },
+        precision: args.precision.into(),
         validation: args.validation || std::env::var_os("GLINT_VALIDATION").is_some(),
         methods: match args.methods {
             MethodsArg::Robust => Methods::Robust,

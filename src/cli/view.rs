@@ -6,7 +6,7 @@ use std::process::ExitCode;
 use std::time::Duration;
 
 use glint::progressive::StopAt;
-use glint::render::{Backend, RenderOptions};
+use glint::render::RenderOptions;
 
 use super::values::{parse_error_target, parse_rgb, parse_seconds};
 use super::{BackendArg, EffectArgs, PrecisionArg};
@@ -60,19 +60,12 @@ pub fn run(args: ViewArgs) -> anyhow::Result<ExitCode> {
         width: args.width,
         height: args.height,
         background: args.background,
-        backend: match args.backend {
-            BackendArg::Auto => Backend::Auto,
-            BackendArg::Gpu => Backend::Gpu,
-            BackendArg::Cpu => Backend::Cpu,
-        },
+        backend: args.backend.into(),
         device: args
             .device
             .as_deref()
             .map(glint::gpu::DeviceSelector::parse),
-        precision: match args.precision {
-            PrecisionArg::F32 => glint::cpu::Precision::F32,
-            PrecisionArg::F64 => glint::cpu::Precision::F64,
-        },
+        precision: args.precision.into(),
         settings: args.effects.settings(),
         tile: args.tile,
         pipeline_cache: glint::gpu::cache::default_dir(),
