@@ -99,7 +99,16 @@ const FRAMES_STAMP: &str = ".glint-frames";
 pub(super) fn claim_frames(dir: &Path, digest: &str) -> anyhow::Result<()> {
     let stamp = dir.join(FRAMES_STAMP);
     let line = format!("render {digest}\n");
-    match std::fs::read_to_string(&stamp) {
+    // Read no more than a stamp can hold: whatever lies under that name.
+    let read = std::fs::File::open(&stamp).and_then(|f| {
+        let mut found = String::new();
+        std::io::Read::read_to_string(
+            &mut std::io::Read::take(f, 4 * line.len() as u64),
+            &mut found,
+        )
+        .map(|_| found)
+    });
+    match read {
         Ok(found) if found == line => Ok(()),
         Ok(found) => anyhow::bail!(
             "{} holds frames of another render ({}; this one is {digest}: another scene, \

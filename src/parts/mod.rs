@@ -359,6 +359,25 @@ mod tests {
         }
     }
 
+    proptest::proptest! {
+        /// Any `--part` text and any variable's value: an index in range or
+        /// an error, never a panic.
+        #[test]
+        fn any_part_argument_resolves_or_says_why(
+            arg in proptest::prop_oneof!["\\PC{0,24}", "(slurm|k8s|env|[0-9]{1,8})/ ?[0-9]{1,8}"],
+            value in proptest::prop_oneof!["\\PC{0,12}", " ?[0-9]{1,10}"],
+        ) {
+            if let Ok(p) = PartArg::parse(&arg) {
+                let vars = [(SLURM_VAR, value.as_str()), (K8S_VAR, value.as_str())];
+                for vars in [&vars[..1], &vars[1..], &[][..]] {
+                    if let Ok(part) = p.resolve(env(vars)) {
+                        proptest::prop_assert!(part.index < part.count && part.count == p.count);
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn part_arguments_parse_and_read_their_index() {
         let given = PartArg::parse("3/16").expect("valid");
