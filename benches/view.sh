@@ -8,7 +8,7 @@ glint=target/release/glint
 [ -x $glint ] || cargo build --release
 backends=("${@:-cpu gpu}"); [ $# -eq 0 ] && backends=(cpu gpu)
 display=:$((200 + $$ % 500))
-Xvfb "$display" -screen 0 1280x1024x24 -nolisten tcp >/dev/null 2>&1 & xvfb=$!
+Xvfb "$display" -screen 0 1280x1024x24 -nolisten tcp -noreset >/dev/null 2>&1 & xvfb=$!
 trap 'kill $xvfb 2>/dev/null' EXIT
 sleep 1
 export DISPLAY=$display GLINT_PIPELINE_CACHE=off

@@ -46,6 +46,12 @@ pub enum Error {
     },
     #[error("invalid option: {0}")]
     InvalidOption(String),
+    /// No window could open: no display, or the display refused.
+    #[error(
+        "cannot open a window: {0}; set DISPLAY (X11) or WAYLAND_DISPLAY, or render to a file \
+         with `glint render SCENE OUT`"
+    )]
+    NoWindow(String),
     /// Parts that cannot be stitched into one image: missing or of
     /// different renders.
     #[error("cannot stitch: {0}")]
@@ -85,6 +91,7 @@ impl Error {
             | Error::UnsupportedImageFormat(_)
             | Error::SizeMismatch(..)
             | Error::InvalidOption(_)
+            | Error::NoWindow(_)
             | Error::Parts(_)
             | Error::BadOutput { .. } => 2,
             Error::Gpu(GpuError::Loader(_) | GpuError::NoDevice | GpuError::DeviceNotFound(_)) => 3,

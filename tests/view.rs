@@ -53,7 +53,18 @@ impl Xvfb {
         let n = 100 + (std::process::id() % 400) * 4 + k;
         let display = format!(":{n}");
         let child = Command::new("Xvfb")
-            .args([&display, "-screen", "0", "1024x768x24", "-nolisten", "tcp"])
+            // -noreset: an X server resets when its last client leaves, and
+            // a client that connects meanwhile is refused (each xdotool
+            // call here is such a client).
+            .args([
+                &display,
+                "-screen",
+                "0",
+                "1024x768x24",
+                "-nolisten",
+                "tcp",
+                "-noreset",
+            ])
             .stdout(Stdio::null())
             .stderr(Stdio::null())
             .spawn()
@@ -77,8 +88,9 @@ impl Xvfb {
             .expect("run an X tool")
     }
 
-    /// The viewer's window, once it exists.
-    fn window(&self) -> String {
+    /// The viewer's window, once it exists; if the viewer ends first, or
+    /// no window shows in time, what it printed says why.
+    fn window(&self, viewer: &mut Viewer) -> String {
         let start = Instant::now();
         loop {
             let o = self.tool("xdotool", &["search", "--name", "glint view"]);
@@ -89,7 +101,17 @@ impl Xvfb {
             if let Some(id) = id {
                 return id;
             }
-            assert!(start.elapsed() < Duration::from_secs(20), "no window");
+            if let Some(status) = viewer.ended() {
+                panic!(
+                    "glint view ended ({status}) before its window showed: {}",
+                    viewer.stderr()
+                );
+            }
+            assert!(
+                start.elapsed() < Duration::from_secs(20),
+                "no window after 20 s; glint view printed: {}",
+                viewer.stderr()
+            );
             std::thread::sleep(Duration::from_millis(100));
         }
     }
@@ -154,22 +176,37 @@ fn levels_off(a: &Path, b: &Path, dir: &Path) -> String {
     String::from_utf8_lossy(&o.stdout).into_owned()
 }
 
-/// The viewer, killed if the test ends (or fails) before it does.
-struct Viewer(Option<Child>);
+/// The viewer, killed if the test ends (or fails) before it does. Its
+/// stderr goes to a file, so a test can say why it failed while it runs.
+struct Viewer {
+    child: Option<Child>,
+    stderr: std::path::PathBuf,
+}
 
 impl Viewer {
+    fn ended(&mut self) -> Option<std::process::ExitStatus> {
+        self.child.as_mut()?.try_wait().ok().flatten()
+    }
+
+    fn stderr(&self) -> String {
+        std::fs::read_to_string(&self.stderr).unwrap_or_default()
+    }
+
     fn finish(mut self) -> Output {
-        self.0
+        let mut out = self
+            .child
             .take()
             .expect("running")
             .wait_with_output()
-            .expect("glint view ends")
+            .expect("glint view ends");
+        out.stderr = self.stderr().into_bytes();
+        out
     }
 }
 
 impl Drop for Viewer {
     fn drop(&mut self) {
-        if let Some(c) = &mut self.0 {
+        if let Some(c) = &mut self.child {
             let _ = c.kill();
             let _ = c.wait();
         }
@@ -177,7 +214,9 @@ impl Drop for Viewer {
 }
 
 fn view(x: &Xvfb, dir: &Path, backend: &str) -> Viewer {
-    Command::new(env!("CARGO_BIN_EXE_glint"))
+    let stderr = dir.join(format!("view-{backend}.stderr"));
+    let file = std::fs::File::create(&stderr).expect("stderr file");
+    let child = Command::new(env!("CARGO_BIN_EXE_glint"))
         .args([
             "view", "s.scene", "out.png", "--width", "160", "--height", "120",
         ])
@@ -187,10 +226,13 @@ fn view(x: &Xvfb, dir: &Path, backend: &str) -> Viewer {
         .env("GLINT_PIPELINE_CACHE", "off")
         .current_dir(dir)
         .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
+        .stderr(file)
         .spawn()
-        .map(|c| Viewer(Some(c)))
-        .expect("run glint view")
+        .expect("run glint view");
+    Viewer {
+        child: Some(child),
+        stderr,
+    }
 }
 
 /// On the CPU reference and on the Vulkan device: the window shows, pixel
@@ -223,8 +265,8 @@ fn the_window_shows_the_image_render_writes() {
             d,
         );
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let child = view(&x, d, backend);
-        let id = x.window();
+        let mut child = view(&x, d, backend);
+        let id = x.window(&mut child);
         let title = x.done(&id, "");
         assert!(title.contains(" spp") && title.contains("RMSE"), "{title}");
         let shot = d.join(format!("window-{backend}.png"));
@@ -252,8 +294,8 @@ fn a_drag_moves_the_camera_and_s_saves_what_render_makes() {
     let dir = tempfile::tempdir().expect("temp dir");
     let d = dir.path();
     std::fs::write(d.join("s.scene"), SCENE).expect("scene");
-    let child = view(&x, d, "cpu");
-    let id = x.window();
+    let mut child = view(&x, d, "cpu");
+    let id = x.window(&mut child);
     let first = x.done(&id, "");
     x.tool("xdotool", &["mousemove", "--window", &id, "60", "60"]);
     x.tool("xdotool", &["mousedown", "1"]);
@@ -333,7 +375,10 @@ fn without_a_display_it_says_so_and_exits_2() {
         "{err}"
     );
     assert!(
-        err.contains("DISPLAY") && err.contains("glint render"),
+        err.contains("cannot open a window")
+            && err.contains("DISPLAY")
+            && err.contains("glint render")
+            && !err.contains("invalid option"),
         "{err}"
     );
     assert!(!dir.path().join("out.png").exists());

@@ -49,10 +49,14 @@ pub struct ViewOptions {
 
 /// Why no window could open: no display, or the display refused.
 pub fn display_error(why: impl std::fmt::Display) -> Error {
-    Error::InvalidOption(format!(
-        "cannot open a window: {why}; set DISPLAY (X11) or WAYLAND_DISPLAY, or render to a file \
-         with `glint render SCENE OUT`"
-    ))
+    let why = why.to_string();
+    // winit's OS errors lead with the winit source line that raised them,
+    // which tells a user nothing.
+    let why = why
+        .strip_prefix("os error at ")
+        .and_then(|rest| rest.split_once(": "))
+        .map_or(why.as_str(), |(_, reason)| reason);
+    Error::NoWindow(why.to_string())
 }
 
 fn check_display() -> Result<(), Error> {
@@ -498,5 +502,31 @@ impl ApplicationHandler<()> for App {
             }
             _ => {}
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn a_refused_display_is_named_without_winits_source_line() {
+        let e = display_error(
+            "os error at /home/u/.cargo/src/winit-0.30/src/platform_impl/linux/mod.rs:788: \
+             Failed to open connection to X server",
+        );
+        let msg = e.to_string();
+        assert!(
+            msg.starts_with(
+                "cannot open a window: Failed to open connection to X server; set DISPLAY"
+            ),
+            "{msg}"
+        );
+        assert_eq!(e.exit_code(), 2);
+        let plain = display_error("no display").to_string();
+        assert!(
+            plain.starts_with("cannot open a window: no display;"),
+            "{plain}"
+        );
     }
 }
