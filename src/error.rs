@@ -58,6 +58,10 @@ pub enum Error {
     Parts(String),
     #[error("cannot write {path}: {reason}")]
     BadOutput { path: PathBuf, reason: String },
+    /// The renderer's cancel flag was set mid-render
+    /// (`Renderer::set_cancel`); nothing of the render is returned.
+    #[error("the render was cancelled before it finished")]
+    Cancelled,
     #[error("the Embree harness {harness} failed on {scene}: {reason}")]
     Harness {
         harness: PathBuf,

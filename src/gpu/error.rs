@@ -73,6 +73,10 @@ pub enum GpuError {
          (the driver reset it or it crashed)"
     )]
     DeviceLost { x: u32, y: u32 },
+    /// The renderer's cancel flag was set (`GpuRenderer::set_cancel`): the
+    /// tiles in flight were waited for, no others were started.
+    #[error("the render was cancelled before it finished")]
+    Cancelled,
     #[error(transparent)]
     Shader(#[from] ShaderError),
 }

@@ -1,5 +1,7 @@
 //! Rendering a parsed scene with a chosen backend: the library's front door.
 
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
 use std::time::{Duration, Instant};
 
 use crate::bvh::Bvh;
@@ -12,16 +14,13 @@ use crate::memory::{self, MemoryNeed};
 pub use crate::output::RenderOutput;
 use crate::parts::cut::{Costs, Span};
 use crate::probe::{PathRecord, ProbeImage};
-use crate::progressive::{
-    Accumulator, Blocks, PassReport, Progressive, StopAt, Stopped, ADAPTIVE_FIRST_PASSES,
-    MIN_PASSES_FOR_TARGET,
-};
 use crate::region::Crop;
 use crate::scene::{Effects, Scene};
 use crate::timing::Timings;
 use crate::Error;
 
 mod options;
+mod progressive;
 mod region;
 
 pub use options::{Backend, RenderOptions};
@@ -49,6 +48,8 @@ pub struct Renderer {
     /// Device creation, reported with the first render.
     setup_timings: std::sync::Mutex<Option<Timings>>,
     note: Option<String>,
+    /// Set: the render in flight ends with `Error::Cancelled`.
+    cancel: Option<Arc<AtomicBool>>,
 }
 
 /// A scene made ready for rendering on one `Renderer` (`prepare_scene`).
@@ -152,7 +153,25 @@ impl Renderer {
             engine,
             setup_timings: std::sync::Mutex::new(Some(timings)),
             note,
+            cancel: None,
         })
+    }
+
+    /// From now on, a render in flight when `flag` is set ends with
+    /// `Error::Cancelled`: on the GPU once its tiles in flight are done, on
+    /// the CPU once its bands in flight are. `glint view` sets it when the
+    /// view changes, so a new view never waits for the old one's pass.
+    pub fn set_cancel(&mut self, flag: Arc<AtomicBool>) {
+        if let Engine::Gpu { renderer, .. } = &mut self.engine {
+            renderer.set_cancel(flag.clone());
+        }
+        self.cancel = Some(flag);
+    }
+
+    fn cancelled(&self) -> bool {
+        self.cancel
+            .as_ref()
+            .is_some_and(|c| c.load(Ordering::Relaxed))
     }
 
     pub fn options(&self) -> &RenderOptions {
@@ -392,107 +411,6 @@ impl Renderer {
         )
     }
 
-    /// Renders `scene` in passes of its own samples per pixel, each with a
-    /// seed of its own, until `stop` says so (`progressive`); `on_pass`
-    /// hears of every pass. The BVH and the packed scene are built once.
-    pub fn render_progressive(
-        &self,
-        scene: &Scene,
-        stop: &StopAt,
-        on_pass: &mut dyn FnMut(&PassReport),
-    ) -> Result<Progressive, Error> {
-        self.render_progressive_watched(scene, stop, &mut |report, _| {
-            on_pass(report);
-            true
-        })
-    }
-
-    /// `render_progressive`, showing each pass's image as it lands:
-    /// `on_pass` gets the report and the passes so far (their `mean()` is
-    /// the image), and ends the render early by returning false
-    /// (`Stopped::Cancelled`). `glint view` refines its window this way.
-    pub fn render_progressive_watched(
-        &self,
-        scene: &Scene,
-        stop: &StopAt,
-        on_pass: &mut dyn FnMut(&PassReport, &crate::progressive::Accumulator) -> bool,
-    ) -> Result<Progressive, Error> {
-        let start = Instant::now();
-        let scene = &*scene.in_view_space();
-        let mut timings = self.take_setup_timings();
-        let mut p = self.prepare(scene, &mut timings);
-        let packed = self.pack(scene, &p, &mut timings);
-        let base_seed = p.effects.seed;
-        let spp = p.effects.spp;
-        let mut acc = Accumulator::new(p.camera.width, p.camera.height);
-        let mut blocks = Blocks::all(p.camera.width, p.camera.height);
-        let mut history: Vec<PassReport> = Vec::new();
-        let mut last: Option<RenderOutput> = None;
-        let stopped = loop {
-            let pass = acc.passes();
-            p.effects.seed = base_seed.wrapping_add(pass);
-            let pass_timings = if pass == 0 {
-                std::mem::take(&mut timings)
-            } else {
-                Timings::default()
-            };
-            let region = if blocks.all_active() {
-                Region::All
-            } else {
-                Region::Blocks(&blocks)
-            };
-            let out = self.render_prepared(scene, &p, &packed, pass_timings, region, &|_, _| {})?;
-            acc.add_where(&out.framebuffer, &|x, y| blocks.is_active(x, y));
-            match last.as_mut() {
-                None => last = Some(out),
-                Some(l) => {
-                    l.timings.extend(&out.timings);
-                    l.samples += out.samples;
-                }
-            }
-            let mut done_blocks = false;
-            if let (true, Some(target)) = (stop.adaptive, stop.aim()) {
-                if acc.passes() >= ADAPTIVE_FIRST_PASSES {
-                    match acc.adaptive_blocks(&blocks, target) {
-                        Some(active) => blocks.active = active,
-                        None if acc.passes() >= MIN_PASSES_FOR_TARGET => done_blocks = true,
-                        // Met already, but too early to trust: the stop
-                        // rule waits for its passes.
-                        None => {}
-                    }
-                }
-            }
-            let report = PassReport {
-                passes: acc.passes(),
-                samples_per_pixel: acc.max_passes() * spp,
-                mean_samples: acc.mean_passes() * f64::from(spp),
-                active_blocks: [blocks.active_count(), blocks.active.len()],
-                elapsed: start.elapsed(),
-                estimated_rmse: acc.estimated_rmse(),
-            };
-            let go_on = on_pass(&report, &acc);
-            history.push(report);
-            if !go_on {
-                break Stopped::Cancelled;
-            }
-            if done_blocks {
-                break Stopped::Target;
-            }
-            if let Some(reason) = stop.verdict(&history, spp) {
-                break reason;
-            }
-        };
-        let mut output = last.expect("at least one pass");
-        output.framebuffer = acc.mean();
-        let report = *history.last().expect("at least one pass");
-        Ok(Progressive {
-            output,
-            report,
-            stopped,
-            history,
-        })
-    }
-
     fn take_setup_timings(&self) -> Timings {
         self.setup_timings
             .lock()
@@ -537,16 +455,11 @@ impl Renderer {
                 need.check(memory::available())?;
                 let options = self.gpu_options(p);
                 let bg = self.options.background;
-                let (framebuffer, gpu_timings) = match region {
-                    Region::All => renderer.render(packed, &p.camera, bg, &options, progress)?,
-                    Region::Blocks(b) => renderer.render_rects(
-                        packed,
-                        &p.camera,
-                        bg,
-                        &options,
-                        &b.rects(),
-                        progress,
-                    )?,
+                let rendered = match region {
+                    Region::All => renderer.render(packed, &p.camera, bg, &options, progress),
+                    Region::Blocks(b) => {
+                        renderer.render_rects(packed, &p.camera, bg, &options, &b.rects(), progress)
+                    }
                     Region::Crop(c) => renderer.render_rects(
                         packed,
                         &p.camera,
@@ -554,15 +467,14 @@ impl Renderer {
                         &options,
                         &[c.rect()],
                         progress,
-                    )?,
-                    Region::Span(s) => renderer.render_rects(
-                        packed,
-                        &p.camera,
-                        bg,
-                        &options,
-                        &s.rects(),
-                        progress,
-                    )?,
+                    ),
+                    Region::Span(s) => {
+                        renderer.render_rects(packed, &p.camera, bg, &options, &s.rects(), progress)
+                    }
+                };
+                let (framebuffer, gpu_timings) = match rendered {
+                    Err(crate::gpu::GpuError::Cancelled) => return Err(Error::Cancelled),
+                    r => r?,
                 };
                 timings.extend(&gpu_timings);
                 // Over the renderer's life: how its pipelines came to be.
@@ -584,9 +496,13 @@ impl Renderer {
                     &p.camera,
                     &options,
                     region.rows(p.camera.height),
-                    &|x, y| region.keeps(x, y),
+                    // Cancelled, the bands left trace nothing.
+                    &|x, y| region.keeps(x, y) && !self.cancelled(),
                     progress,
                 );
+                if self.cancelled() {
+                    return Err(Error::Cancelled);
+                }
                 timings.add("cpu render", start.elapsed());
                 timings.count(crate::timing::CLOSEST_RAYS, work.rays[0]);
                 timings.count(crate::timing::SHADOW_RAYS, work.rays[1]);

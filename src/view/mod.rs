@@ -20,7 +20,7 @@ use std::rc::Rc;
 use std::sync::atomic::Ordering;
 use std::sync::mpsc::Receiver;
 use std::sync::Arc;
-use std::time::Instant;
+use std::time::{Duration, Instant};
 
 use winit::application::ApplicationHandler;
 use winit::dpi::PhysicalSize;
@@ -162,7 +162,15 @@ struct App {
     /// images it has shown since (`glint view`'s own report on exit).
     opened: Option<Instant>,
     first_image: Option<Instant>,
+    /// The first image that was a pass, not a preview.
+    first_pass: Option<Instant>,
     images: u64,
+    /// The image shown is a preview (`worker::PREVIEW_ABOVE`).
+    preview: bool,
+    /// From each change of the view (a drag, a resize) to its first image.
+    after_change: Vec<Duration>,
+    /// The current view has shown no image yet.
+    awaiting: bool,
 }
 
 impl App {
@@ -196,7 +204,11 @@ impl App {
             error: None,
             opened: None,
             first_image: None,
+            first_pass: None,
             images: 0,
+            preview: false,
+            after_change: Vec::new(),
+            awaiting: false,
         }
     }
 
@@ -207,6 +219,7 @@ impl App {
         }
         self.serial += 1;
         self.started = Instant::now();
+        self.awaiting = true;
         self.report = None;
         self.rays_per_second = None;
         self.state = "refining".into();
@@ -221,7 +234,7 @@ impl App {
 
     fn title(&self) -> String {
         let mut t = format!("glint view: {}", self.label);
-        if let Some(r) = &self.report {
+        if let (Some(r), false) = (&self.report, self.preview) {
             t += &format!(", {} spp", r.samples_per_pixel);
             if let Some(e) = r.estimated_rmse {
                 t += &format!(", RMSE {e:.4}");
@@ -290,10 +303,18 @@ impl App {
                     report,
                     rays_per_second,
                     label,
+                    preview,
                 } if serial == self.serial => {
                     self.images += 1;
                     if self.first_image.is_none() {
                         self.first_image = Some(Instant::now());
+                    }
+                    if !preview && self.first_pass.is_none() {
+                        self.first_pass = Some(Instant::now());
+                    }
+                    self.preview = preview;
+                    if std::mem::take(&mut self.awaiting) && self.serial > 1 {
+                        self.after_change.push(self.started.elapsed());
                     }
                     self.image = Some(image);
                     self.report = Some(report);
@@ -328,6 +349,13 @@ impl App {
         let (Some(out), Some(img)) = (&self.options.out, &self.image) else {
             return;
         };
+        if self.preview {
+            eprintln!(
+                "{} not written: the window shows only a preview of this view",
+                out.display()
+            );
+            return;
+        }
         match write_framebuffer(img, out, 95) {
             Ok(()) => eprintln!("wrote {}", out.display()),
             Err(e) => {
@@ -341,6 +369,13 @@ impl App {
         let Some(img) = self.image.clone() else {
             return;
         };
+        if self.preview {
+            eprintln!(
+                "nothing saved: the window shows a preview (half size, 1 sample per pixel); \
+                 press S again once the first pass lands"
+            );
+            return;
+        }
         self.saves += 1;
         let stem = self.options.save_stem.display().to_string();
         for ext in ["png", "exr"] {
@@ -402,8 +437,29 @@ impl App {
         self.take_updates();
         if let (Some(open), Some(first)) = (self.opened, self.first_image) {
             let since = first.elapsed().as_secs_f64();
+            let pass = match self.first_pass {
+                Some(p) if p != first => {
+                    format!(
+                        " (a preview; the first pass {:.0} ms)",
+                        (p - open).as_secs_f64() * 1e3
+                    )
+                }
+                Some(_) => String::new(),
+                None => " (a preview; no pass finished)".to_string(),
+            };
+            let mut changes = self.after_change.clone();
+            changes.sort();
+            let changed = match changes.get(changes.len() / 2) {
+                Some(median) => format!(
+                    "; {} view changes, each showing its first image in {:.0} ms (median), {:.0} ms at most",
+                    changes.len(),
+                    median.as_secs_f64() * 1e3,
+                    changes.last().map_or(0.0, |d| d.as_secs_f64() * 1e3)
+                ),
+                None => String::new(),
+            };
             eprintln!(
-                "view: first image {:.0} ms after the window opened; {} images in {:.1} s since ({:.1} a second)",
+                "view: first image {:.0} ms after the window opened{pass}; {} images in {:.1} s since ({:.1} a second){changed}",
                 (first - open).as_secs_f64() * 1e3,
                 self.images,
                 since,

@@ -7,14 +7,14 @@ use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, Sender};
 use std::sync::{Arc, Mutex};
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use crate::compare::compare_framebuffers;
 use crate::cpu::Precision;
 use crate::framebuffer::Framebuffer;
 use crate::progressive::{PassReport, StopAt, Stopped};
 use crate::render::{Backend, RenderOptions, Renderer};
-use crate::scene::{CameraSpec, Scene};
+use crate::scene::{CameraSpec, Scene, Settings};
 use crate::timing::{CLOSEST_RAYS, SHADOW_RAYS};
 use crate::Error;
 
@@ -50,6 +50,8 @@ pub enum Update {
         /// Rays per second over the render so far, where counted.
         rays_per_second: Option<f64>,
         label: String,
+        /// A preview (`PREVIEW_ABOVE`): not the view's image, never saved.
+        preview: bool,
     },
     /// The refinement of job `serial` ended, and why.
     Stopped {
@@ -65,7 +67,9 @@ pub enum Update {
 pub struct Control {
     pub next: Mutex<Option<Job>>,
     pub paused: AtomicBool,
-    pub cancel: AtomicBool,
+    /// Also every renderer's cancel flag (`Renderer::set_cancel`): a new
+    /// job ends the pass in flight, not only the passes after it.
+    pub cancel: Arc<AtomicBool>,
     pub quit: AtomicBool,
 }
 
@@ -74,6 +78,83 @@ impl Control {
         *self.next.lock().unwrap_or_else(|e| e.into_inner()) = Some(job);
         self.cancel.store(true, Ordering::SeqCst);
     }
+}
+
+/// Where a view's first pass keeps the window waiting longer than this,
+/// each new view shows a preview first: `render --quick`'s settings (half
+/// the width and height, 1 sample per pixel, 1 shadow sample, no
+/// reflection), so a drag is followed at the preview's pace and the
+/// refinement follows it. 100 ms: the 10 images a second a smooth view
+/// needs.
+pub const PREVIEW_ABOVE: Duration = Duration::from_millis(100);
+
+/// Which renderer: a backend at a size, for the view or for its preview.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+struct Key {
+    backend: Backend,
+    width: u32,
+    height: u32,
+    preview: bool,
+}
+
+/// The renderers made so far (each keeps its device, pipelines and
+/// buffers), all ending their renders on `control.cancel`.
+struct Renderers {
+    made: HashMap<Key, Renderer>,
+    options: RenderOptions,
+    cancel: Arc<AtomicBool>,
+}
+
+impl Renderers {
+    fn make(&mut self, key: Key) -> Result<(), Error> {
+        if self.made.contains_key(&key) {
+            return Ok(());
+        }
+        let cpu = key.backend == Backend::Cpu;
+        let o = &self.options;
+        let mut r = Renderer::new(&RenderOptions {
+            width: key.width,
+            height: key.height,
+            backend: key.backend,
+            precision: if cpu { Precision::F32 } else { o.precision },
+            device: if cpu { None } else { o.device.clone() },
+            settings: if key.preview {
+                preview_settings(o.settings)
+            } else {
+                o.settings
+            },
+            ..o.clone()
+        })?;
+        r.set_cancel(self.cancel.clone());
+        self.made.insert(key, r);
+        Ok(())
+    }
+
+    fn get(&self, key: Key) -> &Renderer {
+        &self.made[&key]
+    }
+}
+
+/// `render --quick`'s settings, over whatever else was asked.
+fn preview_settings(s: Settings) -> Settings {
+    Settings {
+        spp: Some(1),
+        shadow_samples: Some(1),
+        reflect: Some(0),
+        ..s
+    }
+}
+
+/// Whether a preview would be quicker than the view's first pass: the
+/// scene asks for more than the preview simulates.
+fn heavier_than_preview(scene: &Scene, options: &RenderOptions) -> bool {
+    let preview = RenderOptions {
+        settings: preview_settings(options.settings),
+        ..options.clone()
+    };
+    let (full, quick) = (options.effects(scene), preview.effects(scene));
+    options.features(scene) != preview.features(scene)
+        || (options.features(scene).area_lights && full.shadow_samples > quick.shadow_samples)
 }
 
 /// The render thread's body: runs until `control.quit`.
@@ -85,7 +166,15 @@ pub fn run(
     tx: Sender<Update>,
     wake: Box<dyn Fn() + Send>,
 ) {
-    let mut renderers: HashMap<(Backend, u32, u32), Renderer> = HashMap::new();
+    let heavy = heavier_than_preview(&scene, &options);
+    let mut renderers = Renderers {
+        made: HashMap::new(),
+        options,
+        cancel: control.cancel.clone(),
+    };
+    // How long each view's first pass took, per renderer: whether the
+    // next view on it needs a preview.
+    let mut first_pass: HashMap<Key, Duration> = HashMap::new();
     let send = |u: Update| {
         let _ = tx.send(u);
         wake();
@@ -106,49 +195,113 @@ pub fn run(
         control.cancel.store(false, Ordering::SeqCst);
         let mut view = scene.clone();
         view.camera = Some(job.camera);
-        let main = options.backend;
-        let needed: &[Backend] = match job.show {
-            Show::Main => &[main],
-            Show::Reference => &[Backend::Cpu],
-            Show::Difference => &[main, Backend::Cpu],
+        let key = |backend: Backend| Key {
+            backend,
+            width: job.width,
+            height: job.height,
+            preview: false,
         };
-        let mut made = Ok(());
-        for &backend in needed {
-            let key = (backend, job.width, job.height);
-            if renderers.contains_key(&key) {
-                continue;
-            }
-            let cpu = backend == Backend::Cpu;
-            match Renderer::new(&RenderOptions {
-                width: job.width,
-                height: job.height,
-                backend,
-                precision: if cpu {
-                    Precision::F32
+        let main = key(renderers.options.backend);
+        let reference = key(Backend::Cpu);
+        let result = match job.show {
+            Show::Main | Show::Reference => {
+                let full = if job.show == Show::Main {
+                    main
                 } else {
-                    options.precision
-                },
-                device: if cpu { None } else { options.device.clone() },
-                ..options.clone()
-            }) {
-                Ok(r) => {
-                    renderers.insert(key, r);
-                }
-                Err(e) => made = Err(e),
+                    reference
+                };
+                let slow = first_pass.get(&full).map_or(heavy, |t| *t > PREVIEW_ABOVE);
+                let preview = Key {
+                    width: job.width.div_ceil(2),
+                    height: job.height.div_ceil(2),
+                    preview: true,
+                    ..full
+                };
+                let shown = if slow {
+                    renderers
+                        .make(preview)
+                        .and_then(|()| show_preview(renderers.get(preview), &view, &job, &send))
+                } else {
+                    Ok(())
+                };
+                shown.and_then(|()| renderers.make(full)).and_then(|()| {
+                    let mut first = None;
+                    let r = refine(
+                        renderers.get(full),
+                        &view,
+                        &stop,
+                        &job,
+                        &control,
+                        &send,
+                        &mut first,
+                    );
+                    if let Some(t) = first {
+                        first_pass.insert(full, t);
+                    }
+                    r
+                })
             }
-        }
-        let get = |b: Backend| &renderers[&(b, job.width, job.height)];
-        let result = made.and_then(|()| match job.show {
-            Show::Main => refine(get(main), &view, &stop, &job, &control, &send),
-            Show::Reference => refine(get(Backend::Cpu), &view, &stop, &job, &control, &send),
-            Show::Difference => difference(get(main), get(Backend::Cpu), &view, &job, &send),
-        });
-        if let Err(e) = result {
-            send(Update::Failed(e.to_string()));
+            Show::Difference => renderers
+                .make(main)
+                .and_then(|()| renderers.make(reference))
+                .and_then(|()| {
+                    difference(
+                        renderers.get(main),
+                        renderers.get(reference),
+                        &view,
+                        &job,
+                        &send,
+                    )
+                }),
+        };
+        match result {
+            // A newer job (or closing the window) cut the render short.
+            Err(Error::Cancelled) => send(Update::Stopped {
+                serial: job.serial,
+                why: Stopped::Cancelled,
+            }),
+            Err(e) => send(Update::Failed(e.to_string())),
+            Ok(()) => {}
         }
     }
 }
 
+/// The view at the preview's settings and size, scaled up to the job's
+/// (nearest pixel) and sent as a preview.
+fn show_preview(
+    renderer: &Renderer,
+    scene: &Scene,
+    job: &Job,
+    send: &dyn Fn(Update),
+) -> Result<(), Error> {
+    let start = Instant::now();
+    let small = renderer.render(scene, &|_, _| {})?.framebuffer;
+    let (w, h) = (job.width as usize, job.height as usize);
+    let (sw, sh) = (small.width as usize, small.height as usize);
+    let pixels = (0..h)
+        .flat_map(|y| (0..w).map(move |x| (x, y)))
+        .map(|(x, y)| small.pixels[(y * sh / h).min(sh - 1) * sw + (x * sw / w).min(sw - 1)])
+        .collect();
+    send(Update::Frame {
+        serial: job.serial,
+        image: Arc::new(Framebuffer {
+            width: job.width,
+            height: job.height,
+            pixels,
+        }),
+        report: not_a_pass(0, start),
+        rays_per_second: None,
+        label: format!(
+            "{}, preview: half size, 1 sample per pixel, 1 shadow sample, no reflection",
+            renderer.name()
+        ),
+        preview: true,
+    });
+    Ok(())
+}
+
+/// The view's refinement, pass by pass; `first` gets how long its first
+/// pass kept the window waiting.
 fn refine(
     renderer: &Renderer,
     scene: &Scene,
@@ -156,9 +309,11 @@ fn refine(
     job: &Job,
     control: &Control,
     send: &dyn Fn(Update),
+    first: &mut Option<Duration>,
 ) -> Result<(), Error> {
     let label = renderer.name();
     let done = renderer.render_progressive_watched(scene, stop, &mut |report, acc| {
+        first.get_or_insert(report.elapsed);
         while control.paused.load(Ordering::SeqCst) && !control.cancel.load(Ordering::SeqCst) {
             std::thread::sleep(Duration::from_millis(20));
         }
@@ -171,6 +326,7 @@ fn refine(
             report: *report,
             rays_per_second: None,
             label: label.clone(),
+            preview: false,
         });
         true
     })?;
@@ -184,6 +340,7 @@ fn refine(
             report: done.report,
             rays_per_second: (counted > 0 && seconds > 0.0).then(|| counted as f64 / seconds),
             label,
+            preview: false,
         });
     }
     send(Update::Stopped {
@@ -203,7 +360,7 @@ fn difference(
     send: &dyn Fn(Update),
 ) -> Result<(), Error> {
     let quiet = |_: u64, _: u64| {};
-    let start = std::time::Instant::now();
+    let start = Instant::now();
     let main = a.render(scene, &quiet)?.framebuffer;
     let reference = b.render(scene, &quiet)?.framebuffer;
     let cmp = compare_framebuffers(&reference, &main, 1.0)?;
@@ -219,14 +376,7 @@ fn difference(
     send(Update::Frame {
         serial: job.serial,
         image: Arc::new(image),
-        report: PassReport {
-            passes: 1,
-            samples_per_pixel: 0,
-            mean_samples: 0.0,
-            active_blocks: [0, 0],
-            elapsed: start.elapsed(),
-            estimated_rmse: None,
-        },
+        report: not_a_pass(1, start),
         rays_per_second: None,
         label: format!(
             "difference, {} against {}: max {:.0} levels, {} pixels over 1, FLIP {:.4}",
@@ -236,6 +386,7 @@ fn difference(
             cmp.over_threshold,
             cmp.flip_mean
         ),
+        preview: false,
     });
     send(Update::Stopped {
         serial: job.serial,
@@ -247,4 +398,116 @@ fn difference(
 /// Waits for the thread's updates without blocking (the window polls).
 pub fn drain(rx: &Receiver<Update>) -> Vec<Update> {
     rx.try_iter().collect()
+}
+
+/// The report of an image that is no pass of a progressive render (a
+/// preview, a difference): no samples, no error estimate.
+fn not_a_pass(passes: u32, start: Instant) -> PassReport {
+    PassReport {
+        passes,
+        samples_per_pixel: 0,
+        mean_samples: 0.0,
+        active_blocks: [0, 0],
+        elapsed: start.elapsed(),
+        estimated_rmse: None,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::view::orbit::Orbit;
+
+    const BODY: &str = "2
+amb: 0.1 0.1 0.1
+sphere pos: 0 0 -3 rad: 0.8 dif: 0.8 0.3 0.2 spe: 0.5 0.5 0.5 shi: 30
+light pos: 2 3 0 col: 0.8 0.8 0.8
+";
+
+    /// The updates of one job on the CPU reference at 40x30, until it stops.
+    fn updates_of(scene_text: &str) -> Vec<Update> {
+        let scene = crate::scene::parse_scene(scene_text.as_bytes(), "test.scene").expect("scene");
+        let control = Arc::new(Control::default());
+        let (tx, rx) = std::sync::mpsc::channel();
+        let options = RenderOptions {
+            width: 40,
+            height: 30,
+            backend: Backend::Cpu,
+            ..RenderOptions::default()
+        };
+        let stop = StopAt {
+            target_rmse: None,
+            time_limit: Some(Duration::from_secs(60)),
+            adaptive: false,
+        };
+        let thread = {
+            let (scene, control) = (scene.clone(), control.clone());
+            std::thread::spawn(move || run(scene, options, stop, control, tx, Box::new(|| {})))
+        };
+        control.submit(Job {
+            camera: Orbit::of(&scene).camera,
+            width: 40,
+            height: 30,
+            show: Show::Main,
+            serial: 1,
+        });
+        let mut got = Vec::new();
+        while let Ok(u) = rx.recv_timeout(Duration::from_secs(60)) {
+            let stopped = matches!(u, Update::Stopped { .. } | Update::Failed(_));
+            got.push(u);
+            if stopped {
+                break;
+            }
+        }
+        control.quit.store(true, Ordering::SeqCst);
+        thread.join().expect("worker ends");
+        got
+    }
+
+    fn previews(updates: &[Update]) -> Vec<bool> {
+        updates
+            .iter()
+            .filter_map(|u| match u {
+                Update::Frame { preview, image, .. } => {
+                    assert_eq!(
+                        (image.width, image.height),
+                        (40, 30),
+                        "every image at the view's size"
+                    );
+                    Some(*preview)
+                }
+                _ => None,
+            })
+            .collect()
+    }
+
+    #[test]
+    fn a_scene_heavier_than_the_preview_shows_one_first() {
+        let updates =
+            updates_of(&BODY.replacen("amb: 0.1 0.1 0.1\n", "amb: 0.1 0.1 0.1\nspp: 4\n", 1));
+        let kinds = previews(&updates);
+        assert_eq!(kinds.first(), Some(&true), "{kinds:?}");
+        assert!(
+            kinds[1..].iter().all(|p| !p) && kinds.len() > 1,
+            "{kinds:?}"
+        );
+        assert!(matches!(
+            updates.last(),
+            Some(Update::Stopped { serial: 1, .. })
+        ));
+    }
+
+    #[test]
+    fn a_classic_scene_needs_no_preview() {
+        let updates = updates_of(BODY);
+        let kinds = previews(&updates);
+        assert!(!kinds.is_empty() && kinds.iter().all(|p| !p), "{kinds:?}");
+        assert!(matches!(
+            updates.last(),
+            Some(Update::Stopped {
+                serial: 1,
+                why: Stopped::Noiseless
+            })
+        ));
+    }
 }

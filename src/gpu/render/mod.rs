@@ -27,7 +27,7 @@ mod plan;
 mod resources;
 
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Mutex;
+use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use job::{place_tile, tile_edge, tiles, Job, TileRect};
@@ -58,6 +58,9 @@ pub struct GpuRenderer {
     /// redoes tiles only in its first. A wrong guess costs time, never
     /// the image.
     needed_passes: AtomicBool,
+    /// Set by whoever renders (`glint view`, when the view changes): the
+    /// render in flight ends after its tiles in flight.
+    cancel: Option<Arc<AtomicBool>>,
 }
 
 impl GpuRenderer {
@@ -68,7 +71,14 @@ impl GpuRenderer {
             pipeline,
             resources: Mutex::new(None),
             needed_passes: AtomicBool::new(false),
+            cancel: None,
         })
+    }
+
+    /// Renders from now on end with `GpuError::Cancelled` once `flag` is
+    /// set, starting no tile or pass after it.
+    pub fn set_cancel(&mut self, flag: Arc<AtomicBool>) {
+        self.cancel = Some(flag);
     }
 
     fn gpu(&self) -> Gpu<'_> {
@@ -93,6 +103,7 @@ impl GpuRenderer {
         let res = guard.as_mut().expect("just created");
         let work = Work {
             start_resumable: self.needed_passes.load(Ordering::Relaxed),
+            cancel: self.cancel.as_deref(),
             ..work
         };
         let (timings, needed_passes) = self.gpu().run(&work, res, progress, sink)?;
@@ -227,6 +238,7 @@ impl GpuRenderer {
                 job,
                 rects,
                 start_resumable: false,
+                cancel: None,
             },
             progress,
             &mut |rect, texels| {
@@ -260,6 +272,7 @@ impl GpuRenderer {
                 job,
                 rects: &[],
                 start_resumable: false,
+                cancel: None,
             },
             &|_, _| {},
             &mut |rect, texels| place_tile(rect, texels, width, &mut image, |t| *t),
@@ -291,6 +304,7 @@ impl GpuRenderer {
                 job,
                 rects: &[],
                 start_resumable: false,
+                cancel: None,
             },
             &|_, _| {},
             &mut |_, texels| record = texels.to_vec(),

@@ -7,6 +7,7 @@
 //! budget, or the render fails naming the pixel).
 
 use std::collections::VecDeque;
+use std::sync::atomic::{AtomicBool, Ordering};
 use std::time::{Duration, Instant};
 
 use ash::vk;
@@ -38,6 +39,8 @@ pub(super) struct Work<'a> {
     pub(super) job: Job,
     pub(super) rects: &'a [TileRect],
     pub(super) start_resumable: bool,
+    /// Set: start no more tiles or passes, and end with `Cancelled`.
+    pub(super) cancel: Option<&'a AtomicBool>,
 }
 
 impl Gpu<'_> {
@@ -59,6 +62,7 @@ impl Gpu<'_> {
             job,
             rects,
             start_resumable,
+            cancel,
         } = *work;
         let mut timings = Timings::default();
         let tile_edge = tile_edge(options.tile_size);
@@ -185,9 +189,11 @@ impl Gpu<'_> {
         let dispatch_start = Instant::now();
         let mut next_tile = tiles.iter();
         let mut free: Vec<usize> = (0..SLOTS).rev().collect();
+        let cancelled = || cancel.is_some_and(|c| c.load(Ordering::Relaxed));
         loop {
-            // Fill every free slot with a new tile.
-            while let Some(&s) = free.last() {
+            // Fill every free slot with a new tile (none once cancelled:
+            // the tiles in flight are only waited for).
+            while let (false, Some(&s)) = (cancelled(), free.last()) {
                 let Some(&rect) = next_tile.next() else {
                     break;
                 };
@@ -211,6 +217,10 @@ impl Gpu<'_> {
             };
             let slot = &res.slots[s];
             self.wait(slot, work, options)?;
+            if cancelled() {
+                free.push(s);
+                continue;
+            }
             match self.dispatch_time(slot) {
                 Some(t) => device_time += t,
                 None => timed_by_device = false,
@@ -275,6 +285,9 @@ impl Gpu<'_> {
             self.submit_pass(&mut res.slots[s], p, lists, job, work, out_texels)?;
             passes += 1;
             in_flight.push_back((s, work));
+        }
+        if cancelled() {
+            return Err(GpuError::Cancelled);
         }
         timings.add(
             "dispatch",
