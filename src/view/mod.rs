@@ -12,6 +12,7 @@
 //! of the two as `compare --diff`'s heat map, `Q` or `Esc` quits.
 
 pub mod orbit;
+mod renderers;
 pub mod worker;
 
 use std::num::NonZeroU32;
@@ -340,6 +341,7 @@ impl App {
                     self.state = format!("failed: {e}");
                     eprintln!("error: {e}");
                 }
+                Update::Note(note) => eprintln!("note: {note}"),
                 _ => {}
             }
         }

@@ -9,12 +9,12 @@ use std::sync::mpsc::{Receiver, Sender};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use super::renderers::{heavier_than_preview, Key, Renderers};
 use crate::compare::compare_framebuffers;
-use crate::cpu::Precision;
 use crate::framebuffer::Framebuffer;
 use crate::progressive::{PassReport, StopAt, Stopped};
 use crate::render::{Backend, RenderOptions, Renderer};
-use crate::scene::{CameraSpec, Scene, Settings};
+use crate::scene::{CameraSpec, Scene};
 use crate::timing::{CLOSEST_RAYS, SHADOW_RAYS};
 use crate::Error;
 
@@ -53,6 +53,8 @@ pub enum Update {
         /// A preview (`PREVIEW_ABOVE`): not the view's image, never saved.
         preview: bool,
     },
+    /// Something the user should know that is not an image (printed).
+    Note(String),
     /// The refinement of job `serial` ended, and why.
     Stopped {
         serial: u64,
@@ -70,13 +72,47 @@ pub struct Control {
     /// Also every renderer's cancel flag (`Renderer::set_cancel`): a new
     /// job ends the pass in flight, not only the passes after it.
     pub cancel: Arc<AtomicBool>,
+    /// When `cancel` was first set since the job in flight began: how long
+    /// the render took to answer.
+    cancelled_at: Mutex<Option<Instant>>,
     pub quit: AtomicBool,
 }
 
 impl Control {
     pub fn submit(&self, job: Job) {
         *self.next.lock().unwrap_or_else(|e| e.into_inner()) = Some(job);
+        self.cancelled_at
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .get_or_insert_with(Instant::now);
         self.cancel.store(true, Ordering::SeqCst);
+    }
+
+    /// The job waiting, if any, now in flight: nothing cancels it yet.
+    fn take(&self) -> Option<Job> {
+        let job = self.next.lock().unwrap_or_else(|e| e.into_inner()).take()?;
+        *self.cancelled_at.lock().unwrap_or_else(|e| e.into_inner()) = None;
+        self.cancel.store(false, Ordering::SeqCst);
+        // A job submitted meanwhile may have set the flag before it was
+        // cleared: it must still end this one.
+        if self
+            .next
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .is_some()
+        {
+            self.cancel.store(true, Ordering::SeqCst);
+        }
+        Some(job)
+    }
+
+    /// Since the render in flight was told to end, if it was.
+    fn since_cancel(&self) -> Option<Duration> {
+        if !self.cancel.load(Ordering::SeqCst) {
+            return None;
+        }
+        let at = *self.cancelled_at.lock().unwrap_or_else(|e| e.into_inner());
+        at.map(|t| t.elapsed())
     }
 }
 
@@ -88,75 +124,6 @@ impl Control {
 /// needs.
 pub const PREVIEW_ABOVE: Duration = Duration::from_millis(100);
 
-/// Which renderer: a backend at a size, for the view or for its preview.
-#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
-struct Key {
-    backend: Backend,
-    width: u32,
-    height: u32,
-    preview: bool,
-}
-
-/// The renderers made so far (each keeps its device, pipelines and
-/// buffers), all ending their renders on `control.cancel`.
-struct Renderers {
-    made: HashMap<Key, Renderer>,
-    options: RenderOptions,
-    cancel: Arc<AtomicBool>,
-}
-
-impl Renderers {
-    fn make(&mut self, key: Key) -> Result<(), Error> {
-        if self.made.contains_key(&key) {
-            return Ok(());
-        }
-        let cpu = key.backend == Backend::Cpu;
-        let o = &self.options;
-        let mut r = Renderer::new(&RenderOptions {
-            width: key.width,
-            height: key.height,
-            backend: key.backend,
-            precision: if cpu { Precision::F32 } else { o.precision },
-            device: if cpu { None } else { o.device.clone() },
-            settings: if key.preview {
-                preview_settings(o.settings)
-            } else {
-                o.settings
-            },
-            ..o.clone()
-        })?;
-        r.set_cancel(self.cancel.clone());
-        self.made.insert(key, r);
-        Ok(())
-    }
-
-    fn get(&self, key: Key) -> &Renderer {
-        &self.made[&key]
-    }
-}
-
-/// `render --quick`'s settings, over whatever else was asked.
-fn preview_settings(s: Settings) -> Settings {
-    Settings {
-        spp: Some(1),
-        shadow_samples: Some(1),
-        reflect: Some(0),
-        ..s
-    }
-}
-
-/// Whether a preview would be quicker than the view's first pass: the
-/// scene asks for more than the preview simulates.
-fn heavier_than_preview(scene: &Scene, options: &RenderOptions) -> bool {
-    let preview = RenderOptions {
-        settings: preview_settings(options.settings),
-        ..options.clone()
-    };
-    let (full, quick) = (options.effects(scene), preview.effects(scene));
-    options.features(scene) != preview.features(scene)
-        || (options.features(scene).area_lights && full.shadow_samples > quick.shadow_samples)
-}
-
 /// The render thread's body: runs until `control.quit`.
 pub fn run(
     scene: Scene,
@@ -167,11 +134,7 @@ pub fn run(
     wake: Box<dyn Fn() + Send>,
 ) {
     let heavy = heavier_than_preview(&scene, &options);
-    let mut renderers = Renderers {
-        made: HashMap::new(),
-        options,
-        cancel: control.cancel.clone(),
-    };
+    let mut renderers = Renderers::new(options, control.cancel.clone());
     // How long each view's first pass took, per renderer: whether the
     // next view on it needs a preview.
     let mut first_pass: HashMap<Key, Duration> = HashMap::new();
@@ -183,16 +146,10 @@ pub fn run(
         if control.quit.load(Ordering::SeqCst) {
             return;
         }
-        let job = control
-            .next
-            .lock()
-            .unwrap_or_else(|e| e.into_inner())
-            .take();
-        let Some(job) = job else {
+        let Some(job) = control.take() else {
             std::thread::sleep(Duration::from_millis(10));
             continue;
         };
-        control.cancel.store(false, Ordering::SeqCst);
         let mut view = scene.clone();
         view.camera = Some(job.camera);
         let key = |backend: Backend| Key {
@@ -201,7 +158,7 @@ pub fn run(
             height: job.height,
             preview: false,
         };
-        let main = key(renderers.options.backend);
+        let main = key(renderers.options().backend);
         let reference = key(Backend::Cpu);
         let result = match job.show {
             Show::Main | Show::Reference => {
@@ -221,6 +178,12 @@ pub fn run(
                     renderers
                         .make(preview)
                         .and_then(|()| show_preview(renderers.get(preview), &view, &job, &send))
+                        .map(|traced| {
+                            let size = (job.width, job.height);
+                            if let Some(note) = renderers.previewed(preview, traced, size) {
+                                send(Update::Note(note));
+                            }
+                        })
                 } else {
                     Ok(())
                 };
@@ -237,6 +200,10 @@ pub fn run(
                     );
                     if let Some(t) = first {
                         first_pass.insert(full, t);
+                    }
+                    let answered = control.since_cancel();
+                    if let Some(note) = answered.and_then(|d| renderers.answered(full, d)) {
+                        send(Update::Note(note));
                     }
                     r
                 })
@@ -267,15 +234,22 @@ pub fn run(
 }
 
 /// The view at the preview's settings and size, scaled up to the job's
-/// (nearest pixel) and sent as a preview.
+/// (nearest pixel) and sent as a preview. Returns how long it traced
+/// (without building pipelines).
 fn show_preview(
     renderer: &Renderer,
     scene: &Scene,
     job: &Job,
     send: &dyn Fn(Update),
-) -> Result<(), Error> {
+) -> Result<Duration, Error> {
     let start = Instant::now();
-    let small = renderer.render(scene, &|_, _| {})?.framebuffer;
+    let out = renderer.render(scene, &|_, _| {})?;
+    let t = &out.timings;
+    let traced = t
+        .phase("dispatch")
+        .unwrap_or_default()
+        .saturating_sub(t.phase("pipeline").unwrap_or_default());
+    let small = out.framebuffer;
     let (w, h) = (job.width as usize, job.height as usize);
     let (sw, sh) = (small.width as usize, small.height as usize);
     let pixels = (0..h)
@@ -297,7 +271,7 @@ fn show_preview(
         ),
         preview: true,
     });
-    Ok(())
+    Ok(traced)
 }
 
 /// The view's refinement, pass by pass; `first` gets how long its first
@@ -509,5 +483,32 @@ light pos: 2 3 0 col: 0.8 0.8 0.8
                 why: Stopped::Noiseless
             })
         ));
+    }
+
+    #[test]
+    fn a_cancel_is_timed_from_the_first_change_since_the_job_began() {
+        let control = Control::default();
+        let job = |serial| Job {
+            camera: Orbit::of(&Scene::default()).camera,
+            width: 4,
+            height: 3,
+            show: Show::Main,
+            serial,
+        };
+        control.submit(job(1));
+        assert_eq!(control.take().map(|j| j.serial), Some(1));
+        assert_eq!(
+            control.since_cancel(),
+            None,
+            "nothing cancels the job taken"
+        );
+        control.submit(job(2));
+        std::thread::sleep(Duration::from_millis(30));
+        control.submit(job(3));
+        let waited = control.since_cancel().expect("cancelled");
+        assert!(waited >= Duration::from_millis(30), "{waited:?}");
+        assert_eq!(control.take().map(|j| j.serial), Some(3), "the newest job");
+        assert_eq!(control.since_cancel(), None);
+        assert!(control.take().is_none());
     }
 }
