@@ -3,10 +3,10 @@
 # to its first image (a preview where the scene is heavier than one) and to its first pass, and
 # images a second while refining, per scene and backend; then five drags, each 0.5 s after the
 # last, so most land mid-pass: the time from each view change to its first image.
-#   benches/view.sh [BACKENDS...]     (default: cpu gpu; needs Xvfb and xdotool)
+#   benches/view.sh [BACKENDS...]     (default: cpu gpu; needs Xvfb and xdotool; GLINT=path: that binary)
 set -euo pipefail
 cd "$(dirname "$0")/.."
-glint=target/release/glint
+glint=${GLINT:-target/release/glint}
 [ -x $glint ] || cargo build --release
 backends=("${@:-cpu gpu}"); [ $# -eq 0 ] && backends=(cpu gpu)
 display=:$((200 + $$ % 500))

@@ -2,7 +2,8 @@
 //! the window's pixels, read back from the server, are the image `render`
 //! writes; the title reports samples and error; a drag moves the camera
 //! and restarts the refinement; `C` prints the camera block and `S` saves
-//! what `render` makes with it; without a display, one line and exit 2.
+//! what `render` makes with it; a heavy scene shows a preview first and
+//! the report on exit says so; without a display, one line and exit 2.
 
 mod common;
 
@@ -213,7 +214,7 @@ impl Drop for Viewer {
     }
 }
 
-fn view(x: &Xvfb, dir: &Path, backend: &str) -> Viewer {
+fn view(x: &Xvfb, dir: &Path, backend: &str, extra: &[&str]) -> Viewer {
     let stderr = dir.join(format!("view-{backend}.stderr"));
     let file = std::fs::File::create(&stderr).expect("stderr file");
     let child = Command::new(env!("CARGO_BIN_EXE_glint"))
@@ -221,6 +222,7 @@ fn view(x: &Xvfb, dir: &Path, backend: &str) -> Viewer {
             "view", "s.scene", "out.png", "--width", "160", "--height", "120",
         ])
         .args(["--backend", backend])
+        .args(extra)
         .env("DISPLAY", &x.display)
         .env_remove("WAYLAND_DISPLAY")
         .env("GLINT_PIPELINE_CACHE", "off")
@@ -265,7 +267,7 @@ fn the_window_shows_the_image_render_writes() {
             d,
         );
         assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        let mut child = view(&x, d, backend);
+        let mut child = view(&x, d, backend, &[]);
         let id = x.window(&mut child);
         let title = x.done(&id, "");
         assert!(title.contains(" spp") && title.contains("RMSE"), "{title}");
@@ -282,7 +284,48 @@ fn the_window_shows_the_image_render_writes() {
         );
         let cmp = levels_off(&d.join("out.png"), &reference, d);
         assert!(cmp.contains("over threshold  0 pixels"), "OUT: {cmp}");
+        let report = report(&out);
+        assert!(
+            !report.contains("preview"),
+            "a classic scene needs no preview: {report}"
+        );
     }
+}
+
+/// `glint view`'s report on exit.
+fn report(out: &Output) -> String {
+    let err = String::from_utf8_lossy(&out.stderr);
+    err.lines()
+        .find(|l| l.starts_with("view: first image "))
+        .unwrap_or_else(|| panic!("no report: {err}"))
+        .to_string()
+}
+
+/// A scene heavier than `render --quick` shows the quick image first, and
+/// the report tells it from the first pass.
+#[test]
+fn a_heavy_scene_shows_a_preview_first_and_says_so() {
+    let Some(x) = Xvfb::start() else { return };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let d = dir.path();
+    let heavy = SCENE.replacen("amb: 0.1 0.1 0.12\n", "amb: 0.1 0.1 0.12\nspp: 4\n", 1);
+    std::fs::write(d.join("s.scene"), heavy).expect("scene");
+    let mut child = view(&x, d, "cpu", &["--time-limit", "1"]);
+    let id = x.window(&mut child);
+    let title = x.done(&id, "");
+    assert!(
+        title.contains(" spp") && !title.contains("preview"),
+        "{title}"
+    );
+    x.key(&id, "q");
+    let out = child.finish();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let report = report(&out);
+    assert!(report.contains("(a preview; the first pass "), "{report}");
 }
 
 /// A drag turns the camera and starts the refinement over; `C` prints the
@@ -294,7 +337,7 @@ fn a_drag_moves_the_camera_and_s_saves_what_render_makes() {
     let dir = tempfile::tempdir().expect("temp dir");
     let d = dir.path();
     std::fs::write(d.join("s.scene"), SCENE).expect("scene");
-    let mut child = view(&x, d, "cpu");
+    let mut child = view(&x, d, "cpu", &[]);
     let id = x.window(&mut child);
     let first = x.done(&id, "");
     x.tool("xdotool", &["mousemove", "--window", &id, "60", "60"]);

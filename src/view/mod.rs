@@ -307,11 +307,12 @@ impl App {
                     preview,
                 } if serial == self.serial => {
                     self.images += 1;
-                    if self.first_image.is_none() {
-                        self.first_image = Some(Instant::now());
-                    }
-                    if !preview && self.first_pass.is_none() {
-                        self.first_pass = Some(Instant::now());
+                    // One instant for both: the report tells a preview
+                    // from a pass by whether they differ.
+                    let now = Instant::now();
+                    self.first_image.get_or_insert(now);
+                    if !preview {
+                        self.first_pass.get_or_insert(now);
                     }
                     self.preview = preview;
                     if std::mem::take(&mut self.awaiting) && self.serial > 1 {
