@@ -3,6 +3,8 @@
 # to its first image (a preview where the scene is heavier than one) and to its first pass, and
 # images a second while refining, per scene and backend; then five drags, each 0.5 s after the
 # last, so most land mid-pass: the time from each view change to its first image.
+# On a Vulkan device that can present, the device draws the window; the last rows are the host
+# drawing it (--host-draws) for comparison.
 #   benches/view.sh [BACKENDS...]     (default: cpu gpu; needs Xvfb and xdotool; GLINT=path: that binary)
 set -euo pipefail
 cd "$(dirname "$0")/.."
@@ -65,6 +67,10 @@ for b in "${backends[@]}"; do
   done
 done
 # The cancellation of a GPU pass waits for the tiles in flight; smaller tiles answer sooner.
+# And the device presenting the window against the host drawing it (--host-draws).
 for b in "${backends[@]}"; do
-  if [ "$b" = gpu ]; then row scenes/effects/soft_shadows.scene gpu --tile 64; fi
+  if [ "$b" = gpu ]; then
+    row scenes/effects/soft_shadows.scene gpu --tile 64
+    for s in "${scenes[@]}"; do row "$s" gpu --host-draws; done
+  fi
 done

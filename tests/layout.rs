@@ -325,3 +325,12 @@ fn shared_constants_match() {
     let on_surface = glint::lights_on_surfaces::ON_SURFACE;
     assert_eq!(f64::from(f32_const(&m, "ON_SURFACE")), on_surface);
 }
+
+/// The window's resolve shader (`gpu::present`) takes `GpuResolve`.
+#[test]
+fn resolve_parameters_match() {
+    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/shaders/resolve.wgsl");
+    let source = std::fs::read_to_string(path).expect("read resolve shader");
+    let m = naga::front::wgsl::parse_str(&source).expect("resolve shader parses");
+    check_struct!(m, "Resolve", GpuResolve, [size, reset, bgra]);
+}

@@ -1,6 +1,7 @@
 //! `glint view` in a real window on an X server this test starts (Xvfb):
 //! the window's pixels, read back from the server, are the image `render`
-//! writes; the title reports samples and error; a drag moves the camera
+//! writes, presented by the Vulkan device (its passes averaged there) or
+//! drawn by the host; the title reports samples and error; a drag moves the camera
 //! and restarts the refinement; `C` prints the camera block and `S` saves
 //! what `render` makes with it; a heavy scene shows a preview first and
 //! the report on exit says so; without a display, one line and exit 2.
@@ -226,6 +227,8 @@ fn view(x: &Xvfb, dir: &Path, backend: &str, extra: &[&str]) -> Viewer {
         .env("DISPLAY", &x.display)
         .env_remove("WAYLAND_DISPLAY")
         .env("GLINT_PIPELINE_CACHE", "off")
+        // On the device, every Vulkan call is checked (`no_vulkan_messages`).
+        .env("GLINT_VALIDATION", "1")
         .current_dir(dir)
         .stdout(Stdio::piped())
         .stderr(file)
@@ -237,8 +240,9 @@ fn view(x: &Xvfb, dir: &Path, backend: &str, extra: &[&str]) -> Viewer {
     }
 }
 
-/// On the CPU reference and on the Vulkan device: the window shows, pixel
-/// for pixel, what `render` writes; the title has the samples and the
+/// On the CPU reference and on the Vulkan device (presenting, and with
+/// `--host-draws` drawn by the host): the window shows, pixel for pixel,
+/// what `render` writes; the title has the samples and the
 /// error; OUT is written; `Q` closes it.
 #[test]
 fn the_window_shows_the_image_render_writes() {
@@ -284,12 +288,92 @@ fn the_window_shows_the_image_render_writes() {
         );
         let cmp = levels_off(&d.join("out.png"), &reference, d);
         assert!(cmp.contains("over threshold  0 pixels"), "OUT: {cmp}");
+        if backend == "gpu" {
+            presented_by_the_device(&out);
+        }
         let report = report(&out);
         assert!(
             !report.contains("preview"),
             "a classic scene needs no preview: {report}"
         );
     }
+    if gpu().is_some() {
+        // `--host-draws`: the device renders, the host draws the same pixels.
+        let mut child = view(&x, d, "gpu", &["--host-draws"]);
+        let id = x.window(&mut child);
+        x.done(&id, "");
+        let shot = d.join("window-host-draws.png");
+        x.capture(&id, &shot);
+        x.key(&id, "q");
+        let out = child.finish();
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(out.status.success(), "{err}");
+        assert!(!err.contains("the device presents"), "{err}");
+        let cmp = levels_off(&shot, &d.join("render-gpu.png"), d);
+        assert!(
+            cmp.contains("over threshold  0 pixels"),
+            "host draws: {cmp}"
+        );
+    }
+}
+
+/// The device presented the window, from a UNORM swapchain (the bytes
+/// `render` writes, no sRGB encoding), and the validation layer had
+/// nothing to say.
+fn presented_by_the_device(out: &Output) {
+    let err = String::from_utf8_lossy(&out.stderr);
+    let line = err
+        .lines()
+        .find(|l| l.starts_with("view: the device presents the window ("))
+        .unwrap_or_else(|| panic!("the host drew the window: {err}"));
+    assert!(line.contains("8A8_UNORM, "), "{line}");
+    assert!(
+        !err.lines().any(|l| l.starts_with("vulkan ")),
+        "validation messages: {err}"
+    );
+}
+
+/// On the device, an adaptive refinement's passes (some cover only the
+/// noisy blocks) are averaged on the device for the window: the window
+/// shows what OUT, the host's mean of the same passes, holds.
+#[test]
+fn the_device_shows_the_mean_the_host_writes() {
+    if gpu().is_none() {
+        return;
+    }
+    let Some(x) = Xvfb::start() else { return };
+    let dir = tempfile::tempdir().expect("temp dir");
+    let d = dir.path();
+    let soft = std::fs::read_to_string(repo_path("scenes/effects/soft_shadows.scene"))
+        .expect("effect scene");
+    std::fs::write(d.join("s.scene"), soft).expect("scene");
+    let mut child = view(
+        &x,
+        d,
+        "gpu",
+        &[
+            "--target-error",
+            "0.0003",
+            "--adaptive",
+            "--time-limit",
+            "20",
+        ],
+    );
+    let id = x.window(&mut child);
+    let title = x.done(&id, "");
+    assert!(title.contains("[done: target error reached]"), "{title}");
+    let shot = d.join("window.png");
+    x.capture(&id, &shot);
+    x.key(&id, "q");
+    let out = child.finish();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    presented_by_the_device(&out);
+    let cmp = levels_off(&shot, &d.join("out.png"), d);
+    assert!(cmp.contains("over threshold  0 pixels"), "{cmp}");
 }
 
 /// `glint view`'s report on exit.

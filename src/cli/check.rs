@@ -51,6 +51,7 @@ pub fn run(args: CheckArgs) -> anyhow::Result<ExitCode> {
             device: selector,
             validation: false,
             pipeline_cache: None,
+            window: None,
         })
         .map_err(glint::Error::from)?;
         let index = ctx.info().index;

@@ -43,7 +43,17 @@ pub struct ViewArgs {
     /// With --target-error: passes only where the noise is.
     #[arg(long, requires = "target_error")]
     adaptive: bool,
-    /// GPU tile edge (default: the device's driver profile).
+    /// Draw the window through the host (softbuffer), even where the
+    /// Vulkan device can present to it: the image is read back and drawn
+    /// by the CPU, as on the CPU reference.
+    #[arg(long)]
+    host_draws: bool,
+    /// Enable the Vulkan validation layer (when installed); its messages
+    /// are printed as they come.
+    #[arg(long)]
+    validation: bool,
+    /// GPU tile edge, fixed (default: the driver profile's, made smaller by the window where a view
+    /// change would wait over 100 ms for the tiles in flight)
     #[arg(long, value_parser = clap::value_parser!(u32).range(8..=2048))]
     tile: Option<u32>,
     #[command(flatten)]
@@ -68,6 +78,7 @@ pub fn run(args: ViewArgs) -> anyhow::Result<ExitCode> {
         precision: args.precision.into(),
         settings: args.effects.settings(),
         tile: args.tile,
+        validation: args.validation || std::env::var_os("GLINT_VALIDATION").is_some(),
         pipeline_cache: glint::gpu::cache::default_dir(),
         ..RenderOptions::default()
     };
@@ -86,6 +97,7 @@ pub fn run(args: ViewArgs) -> anyhow::Result<ExitCode> {
             },
             out: args.out,
             save_stem: stem,
+            host_draws: args.host_draws,
         },
     )?;
     Ok(ExitCode::SUCCESS)

@@ -16,6 +16,8 @@ use super::debug::DebugMessenger;
 use super::driver::DriverProfile;
 use super::error::{GpuError, VkResultExt};
 pub use super::limits::DeviceLimits;
+pub(crate) use super::surface::Surface;
+pub use super::surface::WindowTarget;
 
 const VALIDATION_LAYER: &CStr = c"VK_LAYER_KHRONOS_validation";
 
@@ -56,6 +58,10 @@ pub struct ContextOptions {
     /// Keep built pipelines on disk here (`cache::default_dir`); `None`:
     /// every run compiles its pipelines.
     pub pipeline_cache: Option<std::path::PathBuf>,
+    /// A window to present to (`glint view`): the instance gets the
+    /// surface extensions, the queue is one that can present to it and the
+    /// device gets `VK_KHR_swapchain` (`gpu::present`).
+    pub window: Option<WindowTarget>,
 }
 
 #[derive(Clone, Debug, PartialEq, Eq)]
@@ -77,6 +83,9 @@ pub struct DeviceInfo {
 pub(crate) struct Shared {
     _entry: ash::Entry,
     pub instance: ash::Instance,
+    pub physical: vk::PhysicalDevice,
+    /// The window's surface, with `VK_KHR_swapchain` enabled on `device`.
+    pub surface: Option<Surface>,
     debug: Option<DebugMessenger>,
     pub device: ash::Device,
     pub queue: vk::Queue,
@@ -160,6 +169,9 @@ impl Drop for Shared {
             let _ = self.device.device_wait_idle();
             ManuallyDrop::drop(&mut self.allocator);
             self.device.destroy_device(None);
+            if let Some(surface) = &self.surface {
+                surface.loader.destroy_surface(surface.raw, None);
+            }
             if let Some(debug) = &self.debug {
                 debug.destroy();
             }
@@ -185,9 +197,32 @@ struct Instance {
     instance: ash::Instance,
     debug: Option<DebugMessenger>,
     version: u32,
+    surface: Option<Surface>,
 }
 
-fn create_instance(validation: bool) -> Result<Instance, GpuError> {
+impl Instance {
+    /// Tears down what was made when no device came of it.
+    ///
+    /// # Safety
+    /// Nothing made from the instance may be in use.
+    unsafe fn destroy(&self) {
+        if let Some(surface) = &self.surface {
+            surface.loader.destroy_surface(surface.raw, None);
+        }
+        if let Some(d) = &self.debug {
+            d.destroy();
+        }
+        self.instance.destroy_instance(None);
+    }
+
+    /// The window's surface (`ContextOptions::window`).
+    fn add_surface(&mut self, window: &WindowTarget) -> Result<(), GpuError> {
+        self.surface = Some(window.surface(&self.entry, &self.instance)?);
+        Ok(())
+    }
+}
+
+fn create_instance(validation: bool, window: Option<&WindowTarget>) -> Result<Instance, GpuError> {
     let entry = load_entry()?;
     // SAFETY: plain queries on a loaded entry.
     let (exts, layers, loader_version) = unsafe {
@@ -217,6 +252,9 @@ fn create_instance(validation: bool) -> Result<Instance, GpuError> {
     if has_ext(ash::khr::portability_enumeration::NAME) {
         ext_names.push(ash::khr::portability_enumeration::NAME.as_ptr());
         flags |= vk::InstanceCreateFlags::ENUMERATE_PORTABILITY_KHR;
+    }
+    if let Some(w) = window {
+        ext_names.extend_from_slice(w.instance_extensions(&has_ext)?);
     }
     let debug_utils = validation && has_ext(ash::ext::debug_utils::NAME);
     if debug_utils {
@@ -265,6 +303,7 @@ fn create_instance(validation: bool) -> Result<Instance, GpuError> {
         instance,
         debug,
         version,
+        surface: None,
     })
 }
 
@@ -335,7 +374,7 @@ fn physical_devices(instance: &Instance) -> Result<Vec<vk::PhysicalDevice>, GpuE
 /// Every Vulkan device the loader reports, in its order (the indices
 /// `--device` takes).
 pub fn list_devices() -> Result<Vec<DeviceInfo>, GpuError> {
-    let instance = create_instance(false)?;
+    let instance = create_instance(false, None)?;
     let devices = physical_devices(&instance).map(|pds| {
         pds.iter()
             .enumerate()
@@ -379,8 +418,13 @@ type Chosen = (
 
 impl Context {
     pub fn new(options: &ContextOptions) -> Result<Context, GpuError> {
-        let instance = create_instance(options.validation)?;
-        match Self::with_instance(&instance, options) {
+        let mut instance = create_instance(options.validation, options.window.as_ref())?;
+        let chosen = match &options.window {
+            Some(w) => instance.add_surface(w),
+            None => Ok(()),
+        }
+        .and_then(|()| Self::with_instance(&instance, options));
+        match chosen {
             Ok((device, pd, info, queue_family, extensions)) => Self::finish(
                 instance,
                 device,
@@ -392,12 +436,7 @@ impl Context {
             ),
             Err(e) => {
                 // SAFETY: no device was created; tear down what we made.
-                unsafe {
-                    if let Some(d) = &instance.debug {
-                        d.destroy();
-                    }
-                    instance.instance.destroy_instance(None);
-                }
+                unsafe { instance.destroy() };
                 Err(e)
             }
         }
@@ -421,15 +460,47 @@ impl Context {
                     .call("vkEnumerateDeviceExtensionProperties")?,
             )
         };
+        // With a window, the family must present to it too.
+        let presents = |i: usize| match &instance.surface {
+            // SAFETY: a plain query on a physical device and surface of
+            // this instance.
+            Some(s) => unsafe {
+                s.loader
+                    .get_physical_device_surface_support(pd, i as u32, s.raw)
+            }
+            .unwrap_or(false),
+            None => true,
+        };
         // Prefer a compute-only family (async compute on discrete GPUs).
         let family = families
             .iter()
             .enumerate()
-            .filter(|(_, f)| f.queue_flags.contains(vk::QueueFlags::COMPUTE))
+            .filter(|(i, f)| f.queue_flags.contains(vk::QueueFlags::COMPUTE) && presents(*i))
             .min_by_key(|(_, f)| f.queue_flags.contains(vk::QueueFlags::GRAPHICS))
-            .map(|(i, _)| i as u32)
-            .ok_or(GpuError::NoDevice)?;
+            .map(|(i, _)| i as u32);
+        let family = match (family, &instance.surface) {
+            (Some(f), _) => f,
+            (None, None) => return Err(GpuError::NoDevice),
+            (None, Some(_)) => {
+                return Err(GpuError::NoPresent(format!(
+                    "no compute queue of {} can present to the window",
+                    infos[index].name
+                )))
+            }
+        };
         let mut ext_names: Vec<*const c_char> = Vec::new();
+        if instance.surface.is_some() {
+            if !dev_exts
+                .iter()
+                .any(|e| e.extension_name_as_c_str() == Ok(ash::khr::swapchain::NAME))
+            {
+                return Err(GpuError::NoPresent(format!(
+                    "{} has no VK_KHR_swapchain",
+                    infos[index].name
+                )));
+            }
+            ext_names.push(ash::khr::swapchain::NAME.as_ptr());
+        }
         // The spec requires enabling portability_subset wherever it is listed.
         if dev_exts
             .iter()
@@ -509,10 +580,7 @@ impl Context {
                 // SAFETY: nothing was created on the device yet.
                 unsafe {
                     device.destroy_device(None);
-                    if let Some(d) = &instance.debug {
-                        d.destroy();
-                    }
-                    instance.instance.destroy_instance(None);
+                    instance.destroy();
                 }
                 return Err(GpuError::Alloc {
                     what: "the allocator".into(),
@@ -532,6 +600,8 @@ impl Context {
             shared: Arc::new(Shared {
                 _entry: instance.entry,
                 instance: instance.instance,
+                physical,
+                surface: instance.surface,
                 debug: instance.debug,
                 device,
                 queue,

@@ -77,6 +77,10 @@ pub enum GpuError {
     /// tiles in flight were waited for, no others were started.
     #[error("the render was cancelled before it finished")]
     Cancelled,
+    /// The device cannot present to the window (`gpu::present`); the
+    /// window then draws the image through the host.
+    #[error("the Vulkan device cannot present to the window: {0}")]
+    NoPresent(String),
     #[error(transparent)]
     Shader(#[from] ShaderError),
 }

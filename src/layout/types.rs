@@ -372,3 +372,15 @@ pub const LEAF_END: u32 = 1 << 30;
 /// one (the entries it leaves for later), and the collapsed tree is no
 /// deeper than the binary one.
 pub const TRAVERSAL_STACK: u32 = BVH_MAX_DEPTH;
+
+/// `shaders/resolve.wgsl`'s parameters (`gpu::present`): the view's size,
+/// whether this pass is its first (the sums start over) and the byte order
+/// of the swapchain's format.
+#[repr(C)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
+pub struct GpuResolve {
+    pub size: [u32; 2],
+    pub reset: u32,
+    /// 1: pack B, G, R, A (`B8G8R8A8_UNORM`); 0: R, G, B, A.
+    pub bgra: u32,
+}

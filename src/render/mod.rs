@@ -80,6 +80,17 @@ struct Prepared {
 
 impl Renderer {
     pub fn new(options: &RenderOptions) -> Result<Renderer, Error> {
+        Self::made(options, None)
+    }
+
+    /// A renderer whose GPU work runs on `ctx` (`glint view`'s renderers
+    /// share the one device that presents to the window); the CPU
+    /// reference ignores it.
+    pub fn on(options: &RenderOptions, ctx: Context) -> Result<Renderer, Error> {
+        Self::made(options, Some(ctx))
+    }
+
+    fn made(options: &RenderOptions, context: Option<Context>) -> Result<Renderer, Error> {
         if options.width == 0 || options.height == 0 {
             return Err(Error::InvalidOption(format!(
                 "image size {}x{} has no pixels",
@@ -112,9 +123,14 @@ impl Renderer {
                 device: options.device.clone(),
                 validation: options.validation,
                 pipeline_cache: options.pipeline_cache.clone(),
+                window: None,
             };
             let start = Instant::now();
-            match Context::new(&context_options) {
+            let made = match context {
+                Some(ctx) => Ok(ctx),
+                None => Context::new(&context_options),
+            };
+            match made {
                 // Lavapipe renders the same image as the CPU reference, only
                 // slower on the same cores (docs/cli.md, "Choosing a device").
                 Ok(ctx)

@@ -11,6 +11,7 @@
 //! reference's image of the same view and back, `D` shows the difference
 //! of the two as `compare --diff`'s heat map, `Q` or `Esc` quits.
 
+mod device;
 pub mod orbit;
 mod renderers;
 pub mod worker;
@@ -35,8 +36,18 @@ use crate::progressive::{PassReport, StopAt, Stopped};
 use crate::render::RenderOptions;
 use crate::scene::Scene;
 use crate::Error;
+use device::Drawing;
 use orbit::Orbit;
 use worker::{Control, Job, Show, Update};
+
+/// The window's raw handles, for a Vulkan surface on it.
+fn window_target(window: &Window) -> Option<crate::gpu::WindowTarget> {
+    use raw_window_handle::{HasDisplayHandle, HasWindowHandle};
+    Some(crate::gpu::WindowTarget {
+        display: window.display_handle().ok()?.as_raw(),
+        window: window.window_handle().ok()?.as_raw(),
+    })
+}
 
 /// What `glint view` was asked for.
 pub struct ViewOptions {
@@ -46,6 +57,8 @@ pub struct ViewOptions {
     pub out: Option<PathBuf>,
     /// Where `S` saves (`<stem>-view-N.png` and `.exr`).
     pub save_stem: PathBuf,
+    /// The host draws the window even where the device can present.
+    pub host_draws: bool,
 }
 
 /// Why no window could open: no display, or the display refused.
@@ -124,6 +137,7 @@ pub fn show(image: Framebuffer, title: String) -> Result<(), Error> {
         stop: StopAt::default(),
         out: None,
         save_stem: PathBuf::from("glint"),
+        host_draws: true,
     };
     let mut app = App::new(
         &Scene::default(),
@@ -143,7 +157,11 @@ struct App {
     control: Arc<Control>,
     updates: Option<Receiver<Update>>,
     window: Option<Rc<Window>>,
+    /// The host's drawing surface, where the host draws the window.
     surface: Option<softbuffer::Surface<Rc<Window>, Rc<Window>>>,
+    /// The device presents the window (`device::Screen`); the host draws
+    /// it where false.
+    device_draws: bool,
     orbit: Orbit,
     show: Show,
     serial: u64,
@@ -190,6 +208,7 @@ impl App {
             updates,
             window: None,
             surface: None,
+            device_draws: false,
             show: Show::Main,
             serial: 0,
             size,
@@ -255,10 +274,16 @@ impl App {
 
     fn redraw(&mut self) {
         let title = self.title();
+        if let Some(window) = &self.window {
+            window.set_title(&title);
+        }
+        if self.device_draws {
+            self.control.repaint.store(true, Ordering::SeqCst);
+            return;
+        }
         let (Some(window), Some(surface)) = (&self.window, &mut self.surface) else {
             return;
         };
-        window.set_title(&title);
         let size = window.inner_size();
         let (Some(w), Some(h)) = (NonZeroU32::new(size.width), NonZeroU32::new(size.height)) else {
             return;
@@ -294,6 +319,17 @@ impl App {
         let _ = buffer.present();
     }
 
+    /// The host draws the window from now on.
+    fn open_host_surface(&mut self) {
+        let Some(window) = &self.window else { return };
+        let surface = softbuffer::Context::new(window.clone())
+            .and_then(|c| softbuffer::Surface::new(&c, window.clone()));
+        match surface {
+            Ok(s) => self.surface = Some(s),
+            Err(e) => self.error = Some(display_error(e)),
+        }
+    }
+
     fn take_updates(&mut self) {
         let Some(rx) = &self.updates else { return };
         for u in worker::drain(rx) {
@@ -305,6 +341,7 @@ impl App {
                     rays_per_second,
                     label,
                     preview,
+                    ..
                 } if serial == self.serial => {
                     self.images += 1;
                     // One instant for both: the report tells a preview
@@ -343,6 +380,19 @@ impl App {
                     eprintln!("error: {e}");
                 }
                 Update::Note(note) => eprintln!("note: {note}"),
+                Update::Drawing(Drawing::Device(what)) => {
+                    eprintln!("view: the device presents the window ({what})");
+                    self.device_draws = true;
+                }
+                Update::Drawing(Drawing::Host(why)) => {
+                    if let Some(why) = why {
+                        eprintln!("note: {why}; the window draws through the host");
+                    }
+                    self.device_draws = false;
+                    if self.surface.is_none() {
+                        self.open_host_surface();
+                    }
+                }
                 _ => {}
             }
         }
@@ -492,17 +542,27 @@ impl ApplicationHandler<()> for App {
                 return;
             }
         };
-        let surface = softbuffer::Context::new(window.clone())
-            .and_then(|c| softbuffer::Surface::new(&c, window.clone()));
-        match surface {
-            Ok(s) => self.surface = Some(s),
-            Err(e) => {
-                self.error = Some(display_error(e));
+        // The render thread presents from the device where it can
+        // (`device::Screen`) and says so before its first image; a finished
+        // image (`render --show`) is the host's to draw.
+        match window_target(&window) {
+            Some(target) if self.updates.is_some() && !self.options.host_draws => {
+                *self
+                    .control
+                    .window
+                    .lock()
+                    .unwrap_or_else(|e| e.into_inner()) = Some(target);
+            }
+            _ => {}
+        }
+        self.window = Some(window);
+        if self.updates.is_none() {
+            self.open_host_surface();
+            if self.error.is_some() {
                 event_loop.exit();
                 return;
             }
         }
-        self.window = Some(window);
         self.opened = Some(Instant::now());
         self.restart();
         self.redraw();

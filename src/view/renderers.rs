@@ -8,6 +8,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use crate::cpu::Precision;
+use crate::gpu::Context;
 use crate::render::{Backend, RenderOptions, Renderer};
 use crate::scene::{Scene, Settings};
 use crate::Error;
@@ -57,6 +58,9 @@ pub(super) struct Renderers {
     cancel: Arc<AtomicBool>,
     /// The GPU tile the window moved to (`view_tile`), if it did.
     tile: Option<u32>,
+    /// The device that presents to the window (`device::Screen`): every
+    /// GPU renderer is made on it.
+    context: Option<Context>,
 }
 
 impl Renderers {
@@ -66,7 +70,13 @@ impl Renderers {
             options,
             cancel,
             tile: None,
+            context: None,
         }
+    }
+
+    /// GPU renderers made from now on run on `ctx`.
+    pub(super) fn use_context(&mut self, ctx: Context) {
+        self.context = Some(ctx);
     }
 
     pub(super) fn options(&self) -> &RenderOptions {
@@ -79,7 +89,7 @@ impl Renderers {
         }
         let cpu = key.backend == Backend::Cpu;
         let o = &self.options;
-        let mut r = Renderer::new(&RenderOptions {
+        let options = RenderOptions {
             width: key.width,
             height: key.height,
             backend: key.backend,
@@ -92,7 +102,11 @@ impl Renderers {
             },
             tile: o.tile.or(self.tile),
             ..o.clone()
-        })?;
+        };
+        let mut r = match (&self.context, cpu) {
+            (Some(ctx), false) => Renderer::on(&options, ctx.clone())?,
+            _ => Renderer::new(&options)?,
+        };
         r.set_cancel(self.cancel.clone());
         self.made.insert(key, r);
         Ok(())
@@ -219,6 +233,7 @@ mod tests {
             options: options.clone(),
             cancel: Arc::new(AtomicBool::new(false)),
             tile: None,
+            context: None,
         };
         if let Err(e) = renderers.make(key) {
             let ci = std::env::var_os("CI").is_some_and(|v| !v.is_empty() && v != "false");
@@ -259,6 +274,7 @@ mod tests {
             options: options.clone(),
             cancel: Arc::new(AtomicBool::new(false)),
             tile: None,
+            context: None,
         };
         fresh.make(preview).expect("preview made");
         // The view, 40x30, is one tile of 1,200 pixels, 4x the preview's.
@@ -286,6 +302,7 @@ mod tests {
             },
             cancel: Arc::new(AtomicBool::new(false)),
             tile: None,
+            context: None,
         };
         chosen.make(key).expect("made");
         assert_eq!(chosen.answered(key, Duration::from_secs(2)), None);

@@ -3,15 +3,18 @@
 //! the window, and starts over when the view changes. The window thread
 //! never waits for a pass.
 
+use std::cell::RefCell;
 use std::collections::HashMap;
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::mpsc::{Receiver, Sender};
 use std::sync::{Arc, Mutex};
 use std::time::{Duration, Instant};
 
+use super::device::{Drawing, Screen};
 use super::renderers::{heavier_than_preview, Key, Renderers};
 use crate::compare::compare_framebuffers;
 use crate::framebuffer::Framebuffer;
+use crate::gpu::WindowTarget;
 use crate::progressive::{PassReport, StopAt, Stopped};
 use crate::render::{Backend, RenderOptions, Renderer};
 use crate::scene::{CameraSpec, Scene};
@@ -52,7 +55,11 @@ pub enum Update {
         label: String,
         /// A preview (`PREVIEW_ABOVE`): not the view's image, never saved.
         preview: bool,
+        /// The device presented it already (`device::Screen`).
+        drawn: bool,
     },
+    /// Who draws the window: sent once, before the first image.
+    Drawing(Drawing),
     /// Something the user should know that is not an image (printed).
     Note(String),
     /// The refinement of job `serial` ended, and why.
@@ -76,6 +83,11 @@ pub struct Control {
     /// the render took to answer.
     cancelled_at: Mutex<Option<Instant>>,
     pub quit: AtomicBool,
+    /// The window, set before the first job: the device presents to it
+    /// where it can (`device::Screen`).
+    pub window: Mutex<Option<WindowTarget>>,
+    /// The window was exposed or resized: present the last image again.
+    pub repaint: AtomicBool,
 }
 
 impl Control {
@@ -138,18 +150,46 @@ pub fn run(
     // How long each view's first pass took, per renderer: whether the
     // next view on it needs a preview.
     let mut first_pass: HashMap<Key, Duration> = HashMap::new();
-    let send = |u: Update| {
+    let screen: RefCell<Option<Screen>> = RefCell::new(None);
+    let post = |u: Update| {
         let _ = tx.send(u);
         wake();
+    };
+    // Images the host made go to the device's screen first, where it
+    // draws the window.
+    let send = |u: Update| {
+        if let Update::Frame {
+            image,
+            drawn: false,
+            ..
+        } = &u
+        {
+            if let Some(Err(note)) = screen.borrow_mut().as_mut().map(|s| s.host(image)) {
+                post(Update::Note(note));
+                post(Update::Drawing(Drawing::Host(None)));
+            }
+        }
+        post(u);
     };
     loop {
         if control.quit.load(Ordering::SeqCst) {
             return;
         }
         let Some(job) = control.take() else {
+            repaint(&screen, &control, &post);
             std::thread::sleep(Duration::from_millis(10));
             continue;
         };
+        if screen.borrow().is_none() {
+            let window = control
+                .window
+                .lock()
+                .unwrap_or_else(|e| e.into_inner())
+                .take();
+            let (opened, drawing) = Screen::open(window, &mut renderers);
+            *screen.borrow_mut() = Some(opened);
+            post(Update::Drawing(drawing));
+        }
         let mut view = scene.clone();
         view.camera = Some(job.camera);
         let key = |backend: Backend| Key {
@@ -193,9 +233,8 @@ pub fn run(
                         renderers.get(full),
                         &view,
                         &stop,
-                        &job,
-                        &control,
-                        &send,
+                        (&job, &control),
+                        (&send, &post, &screen),
                         &mut first,
                     );
                     if let Some(t) = first {
@@ -270,29 +309,70 @@ fn show_preview(
             renderer.name()
         ),
         preview: true,
+        drawn: false,
     });
     Ok(traced)
 }
 
+/// Where the window's images go: to the window thread (`send` presents
+/// a host image on the device's screen first, `post` does not) and the
+/// screen.
+type Outlets<'a> = (
+    &'a dyn Fn(Update),
+    &'a dyn Fn(Update),
+    &'a RefCell<Option<Screen>>,
+);
+
+/// Presents the last image again where the window asked for it, or where
+/// it was not presented yet.
+fn repaint(screen: &RefCell<Option<Screen>>, control: &Control, post: &dyn Fn(Update)) {
+    let due = control.repaint.swap(false, Ordering::SeqCst);
+    if let Some(Err(note)) = screen.borrow_mut().as_mut().map(|s| s.again(due)) {
+        post(Update::Note(note));
+        post(Update::Drawing(Drawing::Host(None)));
+    }
+}
+
 /// The view's refinement, pass by pass; `first` gets how long its first
-/// pass kept the window waiting.
+/// pass kept the window waiting. On the presenting device, the passes are
+/// averaged and presented there (`device::Screen`).
 fn refine(
     renderer: &Renderer,
     scene: &Scene,
     stop: &StopAt,
-    job: &Job,
-    control: &Control,
-    send: &dyn Fn(Update),
+    (job, control): (&Job, &Control),
+    (send, post, screen): Outlets,
     first: &mut Option<Duration>,
 ) -> Result<(), Error> {
     let label = renderer.name();
+    let started = screen
+        .borrow_mut()
+        .as_mut()
+        .map_or(Ok(false), |s| s.start(renderer, job.width, job.height));
+    let mut on_device = started.unwrap_or_else(|note| {
+        post(Update::Note(note));
+        post(Update::Drawing(Drawing::Host(None)));
+        false
+    });
     let done = renderer.render_progressive_watched(scene, stop, &mut |report, acc| {
         first.get_or_insert(report.elapsed);
         while control.paused.load(Ordering::SeqCst) && !control.cancel.load(Ordering::SeqCst) {
+            repaint(screen, control, post);
             std::thread::sleep(Duration::from_millis(20));
         }
         if control.cancel.load(Ordering::SeqCst) {
             return false;
+        }
+        if on_device {
+            let shown = screen
+                .borrow_mut()
+                .as_mut()
+                .map_or(Ok(()), |s| s.pass(report.passes == 1));
+            if let Err(note) = shown {
+                post(Update::Note(note));
+                post(Update::Drawing(Drawing::Host(None)));
+                on_device = false;
+            }
         }
         send(Update::Frame {
             serial: job.serial,
@@ -301,20 +381,27 @@ fn refine(
             rays_per_second: None,
             label: label.clone(),
             preview: false,
+            drawn: on_device,
         });
         true
-    })?;
+    });
+    if let Some(s) = screen.borrow().as_ref() {
+        s.stop(renderer);
+    }
+    let done = done?;
     let t = &done.output.timings;
     let counted = t.counted(CLOSEST_RAYS) + t.counted(SHADOW_RAYS);
     let seconds = done.report.elapsed.as_secs_f64();
     if done.stopped != Stopped::Cancelled {
-        send(Update::Frame {
+        // The last pass's image, already shown: now with the render's rate.
+        post(Update::Frame {
             serial: job.serial,
             image: Arc::new(done.output.framebuffer),
             report: done.report,
             rays_per_second: (counted > 0 && seconds > 0.0).then(|| counted as f64 / seconds),
             label,
             preview: false,
+            drawn: on_device,
         });
     }
     send(Update::Stopped {
@@ -361,6 +448,7 @@ fn difference(
             cmp.flip_mean
         ),
         preview: false,
+        drawn: false,
     });
     send(Update::Stopped {
         serial: job.serial,

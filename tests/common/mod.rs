@@ -102,6 +102,7 @@ pub fn gpu() -> Option<&'static Mutex<Gpu>> {
             device: None,
             validation: true,
             pipeline_cache: None,
+            window: None,
         };
         let created = match Context::new(&options) {
             Err(glint::gpu::GpuError::NoValidationLayer) if !in_ci() => {

@@ -40,6 +40,7 @@ use super::bindings::Lists;
 use super::context::Context;
 use super::error::GpuError;
 use super::pipeline::{Kernel, TracePipeline};
+use super::present::FrameTarget;
 use crate::camera::Camera;
 use crate::framebuffer::Framebuffer;
 use crate::layout::GpuScene;
@@ -61,6 +62,9 @@ pub struct GpuRenderer {
     /// Set by whoever renders (`glint view`, when the view changes): the
     /// render in flight ends after its tiles in flight.
     cancel: Option<Arc<AtomicBool>>,
+    /// Where each colour pass's tiles are also copied, on the device (the
+    /// window's running mean: `gpu::present`).
+    frame: Mutex<Option<FrameTarget>>,
 }
 
 impl GpuRenderer {
@@ -72,6 +76,7 @@ impl GpuRenderer {
             resources: Mutex::new(None),
             needed_passes: AtomicBool::new(false),
             cancel: None,
+            frame: Mutex::new(None),
         })
     }
 
@@ -79,6 +84,14 @@ impl GpuRenderer {
     /// set, starting no tile or pass after it.
     pub fn set_cancel(&mut self, flag: Arc<AtomicBool>) {
         self.cancel = Some(flag);
+    }
+
+    /// From now on, each colour render of `target`'s size also copies its
+    /// tiles into `target` on the device (`DeviceMean::start`); `None`
+    /// stops it. A target of another device is ignored.
+    pub fn copy_passes_to(&self, target: Option<FrameTarget>) {
+        let target = target.filter(|t| t.device == self.ctx.shared.device.handle());
+        *self.frame.lock().unwrap_or_else(|e| e.into_inner()) = target;
     }
 
     fn gpu(&self) -> Gpu<'_> {
@@ -101,9 +114,14 @@ impl GpuRenderer {
             *guard = Some(self.gpu().create_resources()?);
         }
         let res = guard.as_mut().expect("just created");
+        let frame = *self.frame.lock().unwrap_or_else(|e| e.into_inner());
+        let colour = matches!(work.job, Job::Image(Kernel::Render) | Job::Rects);
         let work = Work {
             start_resumable: self.needed_passes.load(Ordering::Relaxed),
             cancel: self.cancel.as_deref(),
+            frame: frame.filter(|f| {
+                colour && [f.width, f.height] == [work.camera.width, work.camera.height]
+            }),
             ..work
         };
         let (timings, needed_passes) = self.gpu().run(&work, res, progress, sink)?;
@@ -239,6 +257,7 @@ impl GpuRenderer {
                 rects,
                 start_resumable: false,
                 cancel: None,
+                frame: None,
             },
             progress,
             &mut |rect, texels| {
@@ -273,6 +292,7 @@ impl GpuRenderer {
                 rects: &[],
                 start_resumable: false,
                 cancel: None,
+                frame: None,
             },
             &|_, _| {},
             &mut |rect, texels| place_tile(rect, texels, width, &mut image, |t| *t),
@@ -305,6 +325,7 @@ impl GpuRenderer {
                 rects: &[],
                 start_resumable: false,
                 cancel: None,
+                frame: None,
             },
             &|_, _| {},
             &mut |_, texels| record = texels.to_vec(),

@@ -22,6 +22,7 @@ use crate::camera::Camera;
 use crate::gpu::bindings::Lists;
 use crate::gpu::error::{GpuError, VkResultExt};
 use crate::gpu::pipeline::{Kernel, PipelineKey};
+use crate::gpu::present::FrameTarget;
 use crate::layout::{
     uniform_copy, GpuPixelState, GpuScene, GpuStatus, GpuTile, ADDRESS_LISTS, PATH_HEADER,
     PATH_PER_LIGHT, UNIFORM_FIRST, UNIFORM_LISTS, WORKGROUP_SIZE,
@@ -41,6 +42,8 @@ pub(super) struct Work<'a> {
     pub(super) start_resumable: bool,
     /// Set: start no more tiles or passes, and end with `Cancelled`.
     pub(super) cancel: Option<&'a AtomicBool>,
+    /// Each pass's tiles are also copied here (`GpuRenderer::copy_passes_to`).
+    pub(super) frame: Option<FrameTarget>,
 }
 
 impl Gpu<'_> {
@@ -63,6 +66,7 @@ impl Gpu<'_> {
             rects,
             start_resumable,
             cancel,
+            frame: target,
         } = *work;
         let mut timings = Timings::default();
         let tile_edge = tile_edge(options.tile_size);
@@ -208,7 +212,7 @@ impl Gpu<'_> {
                     resumable: start_resumable || needed_passes,
                 };
                 let p = pipeline_for(&work, &mut timings)?;
-                self.submit_pass(&mut res.slots[s], p, lists, job, work, out_texels)?;
+                self.submit_pass(&mut res.slots[s], p, (lists, job), work, out_texels, target)?;
                 passes += 1;
                 in_flight.push_back((s, work));
             }
@@ -282,7 +286,7 @@ impl Gpu<'_> {
                 continue;
             }
             let p = pipeline_for(&work, &mut timings)?;
-            self.submit_pass(&mut res.slots[s], p, lists, job, work, out_texels)?;
+            self.submit_pass(&mut res.slots[s], p, (lists, job), work, out_texels, target)?;
             passes += 1;
             in_flight.push_back((s, work));
         }
@@ -354,15 +358,14 @@ impl Gpu<'_> {
         ))
     }
 
-    #[allow(clippy::too_many_arguments)]
     pub(super) fn submit_pass(
         &self,
         slot: &mut Slot,
         pipeline: vk::Pipeline,
-        lists: Lists,
-        job: Job,
+        (lists, job): (Lists, Job),
         work: TileWork,
         out_texels: u64,
+        target: Option<FrameTarget>,
     ) -> Result<(), GpuError> {
         let shared = &self.shared;
         let device = &shared.device;
@@ -479,6 +482,21 @@ impl Gpu<'_> {
                     size: bytes,
                 }],
             );
+            if let Some(target) = target {
+                // Row by row into the window's image (`gpu::present`): a
+                // copy on the device, so the window's mean never crosses
+                // to the host. The tile's last pass copies its final texels.
+                let rows: Vec<vk::BufferCopy> = (0..rect.size[1])
+                    .map(|row| vk::BufferCopy {
+                        src_offset: u64::from(row * rect.size[0]) * TEXEL_BYTES,
+                        dst_offset: (u64::from(rect.origin[1] + row) * u64::from(target.width)
+                            + u64::from(rect.origin[0]))
+                            * TEXEL_BYTES,
+                        size: u64::from(rect.size[0]) * TEXEL_BYTES,
+                    })
+                    .collect();
+                device.cmd_copy_buffer(slot.command, slot.output.get().raw, target.buffer, &rows);
+            }
             let to_host = vk::MemoryBarrier::default()
                 .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
                 .dst_access_mask(vk::AccessFlags::HOST_READ);

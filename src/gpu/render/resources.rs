@@ -12,6 +12,7 @@ use super::job::{B_FRAME, B_MATERIALS, B_OUTPUT, B_SKIPS, B_STATE, B_STATUS, B_T
 use super::plan::{ListForms, Split, Upload};
 use crate::gpu::bindings::{Lists, BINDINGS};
 use crate::gpu::buffer::Buffer;
+use crate::gpu::commands::submit_and_wait;
 use crate::gpu::context::Shared;
 use crate::gpu::error::{GpuError, VkResultExt};
 use crate::gpu::pipeline::TracePipeline;
@@ -277,56 +278,45 @@ impl Gpu<'_> {
             let dst = scene_buffer(&mut res.scene, shared, u.binding, size)?.raw;
             let staging = res.staging.at_least(shared, size)?;
             staging.write(&u.bytes);
-            let cmd = res.upload_command;
-            // SAFETY: the previous upload was waited for, so the command
-            // buffer, staging buffer and fence are free; every buffer lives
-            // until the wait below returns.
-            unsafe {
-                device
-                    .reset_command_buffer(cmd, vk::CommandBufferResetFlags::empty())
-                    .call("vkResetCommandBuffer")?;
-                device
-                    .begin_command_buffer(
-                        cmd,
-                        &vk::CommandBufferBeginInfo::default()
-                            .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
-                    )
-                    .call("vkBeginCommandBuffer")?;
-                device.cmd_copy_buffer(
-                    cmd,
-                    staging.raw,
-                    dst,
-                    &[vk::BufferCopy {
-                        src_offset: 0,
-                        dst_offset: 0,
-                        size,
-                    }],
-                );
-                let barrier = vk::MemoryBarrier::default()
-                    .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-                    .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::UNIFORM_READ);
-                device.cmd_pipeline_barrier(
-                    cmd,
-                    vk::PipelineStageFlags::TRANSFER,
-                    vk::PipelineStageFlags::COMPUTE_SHADER,
-                    vk::DependencyFlags::empty(),
-                    &[barrier],
-                    &[],
-                    &[],
-                );
-                device.end_command_buffer(cmd).call("vkEndCommandBuffer")?;
-                let cmds = [cmd];
-                let submit = vk::SubmitInfo::default().command_buffers(&cmds);
-                device
-                    .reset_fences(&[res.upload_fence])
-                    .call("vkResetFences")?;
-                device
-                    .queue_submit(shared.queue, &[submit], res.upload_fence)
-                    .call("vkQueueSubmit")?;
-                device
-                    .wait_for_fences(&[res.upload_fence], true, u64::MAX)
-                    .call("vkWaitForFences")?;
-            }
+            // The previous upload was waited for, so the command buffer,
+            // staging buffer and fence are free; every buffer lives until
+            // the wait returns.
+            submit_and_wait(
+                shared,
+                (res.upload_command, res.upload_fence),
+                (&[], &[]),
+                u64::MAX,
+                |cmd| {
+                    // SAFETY: recording into the upload's own command buffer;
+                    // both buffers are live.
+                    unsafe {
+                        device.cmd_copy_buffer(
+                            cmd,
+                            staging.raw,
+                            dst,
+                            &[vk::BufferCopy {
+                                src_offset: 0,
+                                dst_offset: 0,
+                                size,
+                            }],
+                        );
+                        let barrier = vk::MemoryBarrier::default()
+                            .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+                            .dst_access_mask(
+                                vk::AccessFlags::SHADER_READ | vk::AccessFlags::UNIFORM_READ,
+                            );
+                        device.cmd_pipeline_barrier(
+                            cmd,
+                            vk::PipelineStageFlags::TRANSFER,
+                            vk::PipelineStageFlags::COMPUTE_SHADER,
+                            vk::DependencyFlags::empty(),
+                            &[barrier],
+                            &[],
+                            &[],
+                        );
+                    }
+                },
+            )?;
         }
         Ok(())
     }

@@ -1,0 +1,83 @@
+//! One-off command submission: a command buffer of its own pool with a
+//! fence, and a record-submit-wait round for work the host waits for.
+
+use ash::vk;
+
+use super::context::Shared;
+use super::error::{GpuError, VkResultExt};
+
+/// A resettable command buffer of its own pool, and a fence.
+pub(crate) fn command_and_fence(
+    shared: &Shared,
+) -> Result<(vk::CommandPool, vk::CommandBuffer, vk::Fence), GpuError> {
+    let device = &shared.device;
+    // SAFETY: valid create infos on a live device; the caller destroys them.
+    unsafe {
+        let pool = device
+            .create_command_pool(
+                &vk::CommandPoolCreateInfo::default()
+                    .queue_family_index(shared.queue_family)
+                    .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER),
+                None,
+            )
+            .call("vkCreateCommandPool")?;
+        let command = device
+            .allocate_command_buffers(
+                &vk::CommandBufferAllocateInfo::default()
+                    .command_pool(pool)
+                    .level(vk::CommandBufferLevel::PRIMARY)
+                    .command_buffer_count(1),
+            )
+            .call("vkAllocateCommandBuffers")?[0];
+        let fence = device
+            .create_fence(&vk::FenceCreateInfo::default(), None)
+            .call("vkCreateFence")?;
+        Ok((pool, command, fence))
+    }
+}
+
+/// Records, submits (waiting on `wait` at the transfer stage, signalling
+/// `signal`) and waits for the fence: for small work whose buffers the
+/// next use needs free (uploads, the window's resolve and copies).
+pub(crate) fn submit_and_wait(
+    shared: &Shared,
+    (command, fence): (vk::CommandBuffer, vk::Fence),
+    (wait, signal): (&[vk::Semaphore], &[vk::Semaphore]),
+    timeout_ns: u64,
+    record: impl FnOnce(vk::CommandBuffer),
+) -> Result<(), GpuError> {
+    let device = &shared.device;
+    let stages = vec![vk::PipelineStageFlags::TRANSFER; wait.len()];
+    // SAFETY: the command buffer and fence are idle (the last submit was
+    // waited for); every handle is live.
+    unsafe {
+        device
+            .reset_command_buffer(command, vk::CommandBufferResetFlags::empty())
+            .call("vkResetCommandBuffer")?;
+        device
+            .begin_command_buffer(
+                command,
+                &vk::CommandBufferBeginInfo::default()
+                    .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
+            )
+            .call("vkBeginCommandBuffer")?;
+        record(command);
+        device
+            .end_command_buffer(command)
+            .call("vkEndCommandBuffer")?;
+        let commands = [command];
+        let submit = vk::SubmitInfo::default()
+            .command_buffers(&commands)
+            .wait_semaphores(wait)
+            .wait_dst_stage_mask(&stages)
+            .signal_semaphores(signal);
+        device.reset_fences(&[fence]).call("vkResetFences")?;
+        device
+            .queue_submit(shared.queue, &[submit], fence)
+            .call("vkQueueSubmit")?;
+        device
+            .wait_for_fences(&[fence], true, timeout_ns)
+            .call("vkWaitForFences")?;
+    }
+    Ok(())
+}

@@ -1,0 +1,382 @@
+//! A progressive render's mean, kept on the device: the renderer copies
+//! each pass's tiles into `pass_image` (`GpuRenderer::copy_passes_to`),
+//! and `add_pass` folds them into the sums and packs the mean.
+
+use std::sync::Arc;
+
+use ash::vk;
+use gpu_allocator::MemoryLocation;
+
+use crate::gpu::buffer::Buffer;
+use crate::gpu::commands::{command_and_fence, submit_and_wait};
+use crate::gpu::context::{Context, Shared};
+use crate::gpu::error::{GpuError, ShaderError, VkResultExt};
+use crate::layout::{GpuResolve, WORKGROUP_SIZE};
+
+/// The window's work (a resolve, a copy) is milliseconds; a device that
+/// takes this long has hung, and the window says so instead of waiting.
+pub(super) const WINDOW_WAIT_NS: u64 = 10_000_000_000;
+
+pub const RESOLVE_WGSL: &str = include_str!("../../../shaders/resolve.wgsl");
+
+/// Where a renderer copies each pass's tiles: a `width` x `height` image
+/// of texels (RGB and 1 where rendered) on the device `device`.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct FrameTarget {
+    pub(crate) device: vk::Device,
+    pub(crate) buffer: vk::Buffer,
+    pub width: u32,
+    pub height: u32,
+}
+
+/// The buffers of one view size.
+struct Images {
+    size: [u32; 2],
+    pass: Buffer,
+    sums: Buffer,
+    shown: Buffer,
+}
+
+pub struct DeviceMean {
+    shared: Arc<Shared>,
+    set_layout: vk::DescriptorSetLayout,
+    layout: vk::PipelineLayout,
+    pipeline: vk::Pipeline,
+    pool: vk::DescriptorPool,
+    set: vk::DescriptorSet,
+    commands: vk::CommandPool,
+    command: vk::CommandBuffer,
+    fence: vk::Fence,
+    params: Buffer,
+    images: Option<Images>,
+    bgra: bool,
+}
+
+/// `resolve.wgsl` as SPIR-V 1.0, without contraction (as the trace
+/// shader: a fused multiply-add would move `level`'s rounding edges).
+fn resolve_spirv() -> Result<Vec<u32>, ShaderError> {
+    use naga::back::spv;
+    let fail = |message: String| ShaderError {
+        what: "resolve".into(),
+        message,
+    };
+    let module = naga::front::wgsl::parse_str(RESOLVE_WGSL)
+        .map_err(|e| fail(e.emit_to_string(RESOLVE_WGSL)))?;
+    let info = naga::valid::Validator::new(
+        naga::valid::ValidationFlags::all(),
+        naga::valid::Capabilities::empty(),
+    )
+    .validate(&module)
+    .map_err(|e| fail(e.emit_to_string(RESOLVE_WGSL)))?;
+    let options = spv::Options {
+        lang_version: (1, 0),
+        flags: spv::WriterFlags::empty(),
+        fake_missing_bindings: true,
+        ..spv::Options::default()
+    };
+    let words = spv::write_vec(&module, &info, &options, None)
+        .map_err(|e| fail(format!("SPIR-V generation: {e}")))?;
+    Ok(crate::gpu::rewrite::no_contraction(&words))
+}
+
+impl DeviceMean {
+    /// The resolve pipeline on `ctx`'s device; `bgra` is the swapchain's
+    /// byte order.
+    pub fn new(ctx: &Context, bgra: bool) -> Result<DeviceMean, GpuError> {
+        let shared = ctx.shared.clone();
+        let device = &shared.device;
+        let words = resolve_spirv()?;
+        let params = Buffer::new(
+            &shared,
+            "resolve parameters",
+            std::mem::size_of::<GpuResolve>() as u64,
+            vk::BufferUsageFlags::STORAGE_BUFFER,
+            MemoryLocation::CpuToGpu,
+        )?;
+        let bindings: Vec<_> = (0..4)
+            .map(|b| {
+                vk::DescriptorSetLayoutBinding::default()
+                    .binding(b)
+                    .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+                    .descriptor_count(1)
+                    .stage_flags(vk::ShaderStageFlags::COMPUTE)
+            })
+            .collect();
+        // SAFETY: valid create infos on a live device; each object is
+        // destroyed in `drop`, after the device has finished with it.
+        unsafe {
+            let set_layout = device
+                .create_descriptor_set_layout(
+                    &vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings),
+                    None,
+                )
+                .call("vkCreateDescriptorSetLayout")?;
+            let layouts = [set_layout];
+            let layout = device
+                .create_pipeline_layout(
+                    &vk::PipelineLayoutCreateInfo::default().set_layouts(&layouts),
+                    None,
+                )
+                .call("vkCreatePipelineLayout")?;
+            let module = device
+                .create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None)
+                .call("vkCreateShaderModule")?;
+            let stage = vk::PipelineShaderStageCreateInfo::default()
+                .stage(vk::ShaderStageFlags::COMPUTE)
+                .module(module)
+                .name(c"resolve");
+            let created = device.create_compute_pipelines(
+                vk::PipelineCache::null(),
+                &[vk::ComputePipelineCreateInfo::default()
+                    .stage(stage)
+                    .layout(layout)],
+                None,
+            );
+            device.destroy_shader_module(module, None);
+            let pipeline = created
+                .map_err(|(_, r)| r)
+                .call("vkCreateComputePipelines")?[0];
+            let sizes = [vk::DescriptorPoolSize {
+                ty: vk::DescriptorType::STORAGE_BUFFER,
+                descriptor_count: 4,
+            }];
+            let pool = device
+                .create_descriptor_pool(
+                    &vk::DescriptorPoolCreateInfo::default()
+                        .max_sets(1)
+                        .pool_sizes(&sizes),
+                    None,
+                )
+                .call("vkCreateDescriptorPool")?;
+            let set = device
+                .allocate_descriptor_sets(
+                    &vk::DescriptorSetAllocateInfo::default()
+                        .descriptor_pool(pool)
+                        .set_layouts(&layouts),
+                )
+                .call("vkAllocateDescriptorSets")?[0];
+            let (commands, command, fence) = command_and_fence(&shared)?;
+            Ok(DeviceMean {
+                shared,
+                set_layout,
+                layout,
+                pipeline,
+                pool,
+                set,
+                commands,
+                command,
+                fence,
+                params,
+                images: None,
+                bgra,
+            })
+        }
+    }
+
+    /// Starts a view of `width` x `height`: buffers of its size, the pass
+    /// cleared. The renderer copies its passes into the target returned.
+    pub fn start(&mut self, width: u32, height: u32) -> Result<FrameTarget, GpuError> {
+        let size = [width, height];
+        if self.images.as_ref().is_none_or(|i| i.size != size) {
+            self.images = None;
+            let texels = u64::from(width) * u64::from(height);
+            let usage = vk::BufferUsageFlags::STORAGE_BUFFER
+                | vk::BufferUsageFlags::TRANSFER_DST
+                | vk::BufferUsageFlags::TRANSFER_SRC;
+            let make = |name, bytes| {
+                Buffer::new(&self.shared, name, bytes, usage, MemoryLocation::GpuOnly)
+            };
+            let images = Images {
+                size,
+                pass: make("the window's pass", texels * 16)?,
+                sums: make("the window's sums", texels * 16)?,
+                shown: make("the window's pixels", texels * 4)?,
+            };
+            let infos: Vec<[vk::DescriptorBufferInfo; 1]> =
+                [&images.pass, &images.sums, &images.shown, &self.params]
+                    .iter()
+                    .map(|b| {
+                        [vk::DescriptorBufferInfo::default()
+                            .buffer(b.raw)
+                            .range(b.size)]
+                    })
+                    .collect();
+            let writes: Vec<_> = infos
+                .iter()
+                .enumerate()
+                .map(|(i, info)| {
+                    vk::WriteDescriptorSet::default()
+                        .dst_set(self.set)
+                        .dst_binding(i as u32)
+                        .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
+                        .buffer_info(info)
+                })
+                .collect();
+            // SAFETY: the set is not in use (every submit was waited for).
+            unsafe { self.shared.device.update_descriptor_sets(&writes, &[]) };
+            self.images = Some(images);
+        }
+        let images = self.images.as_ref().expect("just made");
+        let (pass, device) = (images.pass.raw, &self.shared.device);
+        self.submit(|cmd| {
+            // SAFETY: recording into the mean's own command buffer.
+            unsafe { device.cmd_fill_buffer(cmd, pass, 0, vk::WHOLE_SIZE, 0) };
+        })?;
+        Ok(FrameTarget {
+            device: self.shared.device.handle(),
+            buffer: pass,
+            width,
+            height,
+        })
+    }
+
+    /// Folds the pass the renderer copied in into the sums (`first`: the
+    /// view's first pass, the sums start over) and packs the mean.
+    pub fn add_pass(&mut self, first: bool) -> Result<(), GpuError> {
+        let Some(images) = &self.images else {
+            return Ok(());
+        };
+        let params = GpuResolve {
+            size: images.size,
+            reset: u32::from(first),
+            bgra: u32::from(self.bgra),
+        };
+        self.params.write(bytemuck::bytes_of(&params));
+        let groups = images.size.map(|v| v.div_ceil(WORKGROUP_SIZE));
+        let (device, pipeline, layout, set) =
+            (&self.shared.device, self.pipeline, self.layout, self.set);
+        self.submit(|cmd| {
+            // SAFETY: recording into the mean's own command buffer; the
+            // barrier orders the renderer's tile copies before the shader.
+            unsafe {
+                let barrier = vk::MemoryBarrier::default()
+                    .src_access_mask(
+                        vk::AccessFlags::TRANSFER_WRITE | vk::AccessFlags::SHADER_WRITE,
+                    )
+                    .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE);
+                device.cmd_pipeline_barrier(
+                    cmd,
+                    vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::COMPUTE_SHADER,
+                    vk::PipelineStageFlags::COMPUTE_SHADER,
+                    vk::DependencyFlags::empty(),
+                    &[barrier],
+                    &[],
+                    &[],
+                );
+                device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, pipeline);
+                device.cmd_bind_descriptor_sets(
+                    cmd,
+                    vk::PipelineBindPoint::COMPUTE,
+                    layout,
+                    0,
+                    &[set],
+                    &[],
+                );
+                device.cmd_dispatch(cmd, groups[0], groups[1], 1);
+            }
+        })
+    }
+
+    /// The packed pixels' byte order: B, G, R (true) or R, G, B.
+    pub fn bgra(&self) -> bool {
+        self.bgra
+    }
+
+    /// The packed pixels on the device and their size, for a copy.
+    pub(super) fn shown(&self) -> Option<(vk::Buffer, [u32; 2])> {
+        self.images.as_ref().map(|i| (i.shown.raw, i.size))
+    }
+
+    /// The packed pixels, read back (tests: the window's image against
+    /// the host's mean): R, G, B per pixel.
+    pub fn read(&mut self) -> Result<Vec<[u8; 3]>, GpuError> {
+        let Some((shown, size)) = self.shown() else {
+            return Ok(Vec::new());
+        };
+        let bytes = u64::from(size[0]) * u64::from(size[1]) * 4;
+        let staging = Buffer::new(
+            &self.shared,
+            "the window's pixels, read back",
+            bytes,
+            vk::BufferUsageFlags::TRANSFER_DST,
+            MemoryLocation::GpuToCpu,
+        )?;
+        let device = &self.shared.device;
+        self.submit(|cmd| {
+            // SAFETY: recording into the mean's own command buffer.
+            unsafe {
+                let barrier = vk::MemoryBarrier::default()
+                    .src_access_mask(vk::AccessFlags::SHADER_WRITE)
+                    .dst_access_mask(vk::AccessFlags::TRANSFER_READ);
+                device.cmd_pipeline_barrier(
+                    cmd,
+                    vk::PipelineStageFlags::COMPUTE_SHADER,
+                    vk::PipelineStageFlags::TRANSFER,
+                    vk::DependencyFlags::empty(),
+                    &[barrier],
+                    &[],
+                    &[],
+                );
+                device.cmd_copy_buffer(
+                    cmd,
+                    shown,
+                    staging.raw,
+                    &[vk::BufferCopy::default().size(bytes)],
+                );
+                let to_host = vk::MemoryBarrier::default()
+                    .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
+                    .dst_access_mask(vk::AccessFlags::HOST_READ);
+                device.cmd_pipeline_barrier(
+                    cmd,
+                    vk::PipelineStageFlags::TRANSFER,
+                    vk::PipelineStageFlags::HOST,
+                    vk::DependencyFlags::empty(),
+                    &[to_host],
+                    &[],
+                    &[],
+                );
+            }
+        })?;
+        let bgra = self.bgra;
+        Ok(staging
+            .mapped()
+            .chunks_exact(4)
+            .map(|p| {
+                if bgra {
+                    [p[2], p[1], p[0]]
+                } else {
+                    [p[0], p[1], p[2]]
+                }
+            })
+            .collect())
+    }
+
+    /// Records `record` into the command buffer, submits it and waits.
+    fn submit(&self, record: impl FnOnce(vk::CommandBuffer)) -> Result<(), GpuError> {
+        submit_and_wait(
+            &self.shared,
+            (self.command, self.fence),
+            (&[], &[]),
+            WINDOW_WAIT_NS,
+            record,
+        )
+    }
+}
+
+impl Drop for DeviceMean {
+    fn drop(&mut self) {
+        if self.shared.is_poisoned() {
+            return;
+        }
+        let device = &self.shared.device;
+        // SAFETY: every submit was waited for; nothing uses these now.
+        unsafe {
+            device.destroy_fence(self.fence, None);
+            device.destroy_command_pool(self.commands, None);
+            device.destroy_descriptor_pool(self.pool, None);
+            device.destroy_pipeline(self.pipeline, None);
+            device.destroy_pipeline_layout(self.layout, None);
+            device.destroy_descriptor_set_layout(self.set_layout, None);
+        }
+    }
+}
