@@ -194,6 +194,17 @@ impl Viewer {
         std::fs::read_to_string(&self.stderr).unwrap_or_default()
     }
 
+    /// `finish`, and it exited 0.
+    fn finish_ok(self) -> Output {
+        let out = self.finish();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        out
+    }
+
     fn finish(mut self) -> Output {
         let mut out = self
             .child
@@ -280,12 +291,7 @@ fn the_window_shows_the_image_render_writes() {
         let cmp = levels_off(&shot, &reference, d);
         assert!(cmp.contains("over threshold  0 pixels"), "{backend}: {cmp}");
         x.key(&id, "q");
-        let out = child.finish();
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        let out = child.finish_ok();
         let cmp = levels_off(&d.join("out.png"), &reference, d);
         assert!(cmp.contains("over threshold  0 pixels"), "OUT: {cmp}");
         if backend == "gpu" {
@@ -305,9 +311,8 @@ fn the_window_shows_the_image_render_writes() {
         let shot = d.join("window-host-draws.png");
         x.capture(&id, &shot);
         x.key(&id, "q");
-        let out = child.finish();
+        let out = child.finish_ok();
         let err = String::from_utf8_lossy(&out.stderr);
-        assert!(out.status.success(), "{err}");
         assert!(!err.contains("the device presents"), "{err}");
         let cmp = levels_off(&shot, &d.join("render-gpu.png"), d);
         assert!(
@@ -365,12 +370,7 @@ fn the_device_shows_the_mean_the_host_writes() {
     let shot = d.join("window.png");
     x.capture(&id, &shot);
     x.key(&id, "q");
-    let out = child.finish();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = child.finish_ok();
     presented_by_the_device(&out);
     let cmp = levels_off(&shot, &d.join("out.png"), d);
     assert!(cmp.contains("over threshold  0 pixels"), "{cmp}");
@@ -402,12 +402,7 @@ fn a_heavy_scene_shows_a_preview_first_and_says_so() {
         "{title}"
     );
     x.key(&id, "q");
-    let out = child.finish();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out = child.finish_ok();
     let report = report(&out);
     assert!(report.contains("(a preview; the first pass "), "{report}");
 }

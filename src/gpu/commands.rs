@@ -6,21 +6,29 @@ use ash::vk;
 use super::context::Shared;
 use super::error::{GpuError, VkResultExt};
 
+/// A pool of resettable command buffers on the device's queue family; the
+/// caller destroys it.
+pub(crate) fn command_pool(shared: &Shared) -> Result<vk::CommandPool, GpuError> {
+    // SAFETY: a valid create info on a live device.
+    unsafe {
+        shared.device.create_command_pool(
+            &vk::CommandPoolCreateInfo::default()
+                .queue_family_index(shared.queue_family)
+                .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER),
+            None,
+        )
+    }
+    .call("vkCreateCommandPool")
+}
+
 /// A resettable command buffer of its own pool, and a fence.
 pub(crate) fn command_and_fence(
     shared: &Shared,
 ) -> Result<(vk::CommandPool, vk::CommandBuffer, vk::Fence), GpuError> {
     let device = &shared.device;
+    let pool = command_pool(shared)?;
     // SAFETY: valid create infos on a live device; the caller destroys them.
     unsafe {
-        let pool = device
-            .create_command_pool(
-                &vk::CommandPoolCreateInfo::default()
-                    .queue_family_index(shared.queue_family)
-                    .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER),
-                None,
-            )
-            .call("vkCreateCommandPool")?;
         let command = device
             .allocate_command_buffers(
                 &vk::CommandBufferAllocateInfo::default()
@@ -80,4 +88,29 @@ pub(crate) fn submit_and_wait(
             .call("vkWaitForFences")?;
     }
     Ok(())
+}
+
+/// A global memory barrier in `cmd`: the writes `src` (stages, accesses)
+/// made before it, visible to `dst`'s after it.
+///
+/// # Safety
+/// `cmd` is a command buffer of `device` in the recording state.
+pub(crate) unsafe fn memory_barrier(
+    device: &ash::Device,
+    cmd: vk::CommandBuffer,
+    (src_stages, src_access): (vk::PipelineStageFlags, vk::AccessFlags),
+    (dst_stages, dst_access): (vk::PipelineStageFlags, vk::AccessFlags),
+) {
+    let barrier = vk::MemoryBarrier::default()
+        .src_access_mask(src_access)
+        .dst_access_mask(dst_access);
+    device.cmd_pipeline_barrier(
+        cmd,
+        src_stages,
+        dst_stages,
+        vk::DependencyFlags::empty(),
+        &[barrier],
+        &[],
+        &[],
+    );
 }

@@ -6,12 +6,11 @@
 //! present fails, the window draws through the host (softbuffer) and a
 //! note says why.
 
+use super::renderers::Renderers;
+use crate::framebuffer::Framebuffer;
 use crate::gpu::present::Presenter;
 use crate::gpu::{Context, ContextOptions, GpuError, WindowTarget};
 use crate::render::{Backend, Renderer};
-
-use super::renderers::Renderers;
-use crate::framebuffer::Framebuffer;
 
 /// Who draws the window.
 #[derive(Debug)]

@@ -319,19 +319,28 @@ impl App {
         let _ = buffer.present();
     }
 
-    /// The host draws the window from now on.
-    fn open_host_surface(&mut self) {
-        let Some(window) = &self.window else { return };
+    /// The host draws the window from now on; false (the error kept)
+    /// where it cannot.
+    fn open_host_surface(&mut self) -> bool {
+        let Some(window) = &self.window else {
+            return false;
+        };
         let surface = softbuffer::Context::new(window.clone())
             .and_then(|c| softbuffer::Surface::new(&c, window.clone()));
         match surface {
             Ok(s) => self.surface = Some(s),
             Err(e) => self.error = Some(display_error(e)),
         }
+        self.surface.is_some()
     }
 
-    fn take_updates(&mut self) {
-        let Some(rx) = &self.updates else { return };
+    /// Takes the render thread's updates; true where the window must close
+    /// (nothing can draw it).
+    fn take_updates(&mut self) -> bool {
+        let mut closing = false;
+        let Some(rx) = &self.updates else {
+            return closing;
+        };
         for u in worker::drain(rx) {
             match u {
                 Update::Frame {
@@ -389,13 +398,14 @@ impl App {
                         eprintln!("note: {why}; the window draws through the host");
                     }
                     self.device_draws = false;
-                    if self.surface.is_none() {
-                        self.open_host_surface();
+                    if self.surface.is_none() && !self.open_host_surface() {
+                        closing = true;
                     }
                 }
                 _ => {}
             }
         }
+        closing
     }
 
     fn write_out(&mut self) {
@@ -556,20 +566,20 @@ impl ApplicationHandler<()> for App {
             _ => {}
         }
         self.window = Some(window);
-        if self.updates.is_none() {
-            self.open_host_surface();
-            if self.error.is_some() {
-                event_loop.exit();
-                return;
-            }
+        if self.updates.is_none() && !self.open_host_surface() {
+            event_loop.exit();
+            return;
         }
         self.opened = Some(Instant::now());
         self.restart();
         self.redraw();
     }
 
-    fn user_event(&mut self, _: &ActiveEventLoop, (): ()) {
-        self.take_updates();
+    fn user_event(&mut self, event_loop: &ActiveEventLoop, (): ()) {
+        if self.take_updates() {
+            event_loop.exit();
+            return;
+        }
         self.redraw();
     }
 

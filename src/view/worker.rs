@@ -165,8 +165,7 @@ pub fn run(
         } = &u
         {
             if let Some(Err(note)) = screen.borrow_mut().as_mut().map(|s| s.host(image)) {
-                post(Update::Note(note));
-                post(Update::Drawing(Drawing::Host(None)));
+                host_draws_now(&post, note);
             }
         }
         post(u);
@@ -328,9 +327,15 @@ type Outlets<'a> = (
 fn repaint(screen: &RefCell<Option<Screen>>, control: &Control, post: &dyn Fn(Update)) {
     let due = control.repaint.swap(false, Ordering::SeqCst);
     if let Some(Err(note)) = screen.borrow_mut().as_mut().map(|s| s.again(due)) {
-        post(Update::Note(note));
-        post(Update::Drawing(Drawing::Host(None)));
+        host_draws_now(post, note);
     }
+}
+
+/// The device stopped presenting (`note` says why): the host draws the
+/// window from now on.
+fn host_draws_now(post: &dyn Fn(Update), note: String) {
+    post(Update::Note(note));
+    post(Update::Drawing(Drawing::Host(None)));
 }
 
 /// The view's refinement, pass by pass; `first` gets how long its first
@@ -350,8 +355,7 @@ fn refine(
         .as_mut()
         .map_or(Ok(false), |s| s.start(renderer, job.width, job.height));
     let mut on_device = started.unwrap_or_else(|note| {
-        post(Update::Note(note));
-        post(Update::Drawing(Drawing::Host(None)));
+        host_draws_now(post, note);
         false
     });
     let done = renderer.render_progressive_watched(scene, stop, &mut |report, acc| {
@@ -369,8 +373,7 @@ fn refine(
                 .as_mut()
                 .map_or(Ok(()), |s| s.pass(report.passes == 1));
             if let Err(note) = shown {
-                post(Update::Note(note));
-                post(Update::Drawing(Drawing::Host(None)));
+                host_draws_now(post, note);
                 on_device = false;
             }
         }

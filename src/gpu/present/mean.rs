@@ -8,7 +8,7 @@ use ash::vk;
 use gpu_allocator::MemoryLocation;
 
 use crate::gpu::buffer::Buffer;
-use crate::gpu::commands::{command_and_fence, submit_and_wait};
+use crate::gpu::commands::{command_and_fence, memory_barrier, submit_and_wait};
 use crate::gpu::context::{Context, Shared};
 use crate::gpu::error::{GpuError, ShaderError, VkResultExt};
 use crate::layout::{GpuResolve, WORKGROUP_SIZE};
@@ -249,19 +249,17 @@ impl DeviceMean {
             // SAFETY: recording into the mean's own command buffer; the
             // barrier orders the renderer's tile copies before the shader.
             unsafe {
-                let barrier = vk::MemoryBarrier::default()
-                    .src_access_mask(
-                        vk::AccessFlags::TRANSFER_WRITE | vk::AccessFlags::SHADER_WRITE,
-                    )
-                    .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE);
-                device.cmd_pipeline_barrier(
+                memory_barrier(
+                    device,
                     cmd,
-                    vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::COMPUTE_SHADER,
-                    vk::PipelineStageFlags::COMPUTE_SHADER,
-                    vk::DependencyFlags::empty(),
-                    &[barrier],
-                    &[],
-                    &[],
+                    (
+                        vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::COMPUTE_SHADER,
+                        vk::AccessFlags::TRANSFER_WRITE | vk::AccessFlags::SHADER_WRITE,
+                    ),
+                    (
+                        vk::PipelineStageFlags::COMPUTE_SHADER,
+                        vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE,
+                    ),
                 );
                 device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, pipeline);
                 device.cmd_bind_descriptor_sets(
@@ -289,7 +287,7 @@ impl DeviceMean {
 
     /// The packed pixels, read back (tests: the window's image against
     /// the host's mean): R, G, B per pixel.
-    pub fn read(&mut self) -> Result<Vec<[u8; 3]>, GpuError> {
+    pub fn read(&self) -> Result<Vec<[u8; 3]>, GpuError> {
         let Some((shown, size)) = self.shown() else {
             return Ok(Vec::new());
         };
@@ -305,17 +303,17 @@ impl DeviceMean {
         self.submit(|cmd| {
             // SAFETY: recording into the mean's own command buffer.
             unsafe {
-                let barrier = vk::MemoryBarrier::default()
-                    .src_access_mask(vk::AccessFlags::SHADER_WRITE)
-                    .dst_access_mask(vk::AccessFlags::TRANSFER_READ);
-                device.cmd_pipeline_barrier(
+                memory_barrier(
+                    device,
                     cmd,
-                    vk::PipelineStageFlags::COMPUTE_SHADER,
-                    vk::PipelineStageFlags::TRANSFER,
-                    vk::DependencyFlags::empty(),
-                    &[barrier],
-                    &[],
-                    &[],
+                    (
+                        vk::PipelineStageFlags::COMPUTE_SHADER,
+                        vk::AccessFlags::SHADER_WRITE,
+                    ),
+                    (
+                        vk::PipelineStageFlags::TRANSFER,
+                        vk::AccessFlags::TRANSFER_READ,
+                    ),
                 );
                 device.cmd_copy_buffer(
                     cmd,
@@ -323,17 +321,14 @@ impl DeviceMean {
                     staging.raw,
                     &[vk::BufferCopy::default().size(bytes)],
                 );
-                let to_host = vk::MemoryBarrier::default()
-                    .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-                    .dst_access_mask(vk::AccessFlags::HOST_READ);
-                device.cmd_pipeline_barrier(
+                memory_barrier(
+                    device,
                     cmd,
-                    vk::PipelineStageFlags::TRANSFER,
-                    vk::PipelineStageFlags::HOST,
-                    vk::DependencyFlags::empty(),
-                    &[to_host],
-                    &[],
-                    &[],
+                    (
+                        vk::PipelineStageFlags::TRANSFER,
+                        vk::AccessFlags::TRANSFER_WRITE,
+                    ),
+                    (vk::PipelineStageFlags::HOST, vk::AccessFlags::HOST_READ),
                 );
             }
         })?;

@@ -20,6 +20,7 @@ use super::plan::{capped, check_limits, key, scene_uploads, upload};
 use super::resources::{scene_buffer, Gpu, Resources, Slot};
 use crate::camera::Camera;
 use crate::gpu::bindings::Lists;
+use crate::gpu::commands::memory_barrier;
 use crate::gpu::error::{GpuError, VkResultExt};
 use crate::gpu::pipeline::{Kernel, PipelineKey};
 use crate::gpu::present::FrameTarget;
@@ -421,17 +422,17 @@ impl Gpu<'_> {
             for (i, &w) in words.iter().enumerate() {
                 device.cmd_fill_buffer(slot.command, slot.status.raw, 4 * i as u64, 4, w);
             }
-            let to_shader = vk::MemoryBarrier::default()
-                .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-                .dst_access_mask(vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE);
-            device.cmd_pipeline_barrier(
+            memory_barrier(
+                device,
                 slot.command,
-                vk::PipelineStageFlags::TRANSFER,
-                vk::PipelineStageFlags::COMPUTE_SHADER,
-                vk::DependencyFlags::empty(),
-                &[to_shader],
-                &[],
-                &[],
+                (
+                    vk::PipelineStageFlags::TRANSFER,
+                    vk::AccessFlags::TRANSFER_WRITE,
+                ),
+                (
+                    vk::PipelineStageFlags::COMPUTE_SHADER,
+                    vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE,
+                ),
             );
             device.cmd_bind_pipeline(slot.command, vk::PipelineBindPoint::COMPUTE, pipeline);
             device.cmd_bind_descriptor_sets(
@@ -460,17 +461,17 @@ impl Gpu<'_> {
                     slot.first_query + 1,
                 );
             }
-            let to_copy = vk::MemoryBarrier::default()
-                .src_access_mask(vk::AccessFlags::SHADER_WRITE)
-                .dst_access_mask(vk::AccessFlags::TRANSFER_READ | vk::AccessFlags::HOST_READ);
-            device.cmd_pipeline_barrier(
+            memory_barrier(
+                device,
                 slot.command,
-                vk::PipelineStageFlags::COMPUTE_SHADER,
-                vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::HOST,
-                vk::DependencyFlags::empty(),
-                &[to_copy],
-                &[],
-                &[],
+                (
+                    vk::PipelineStageFlags::COMPUTE_SHADER,
+                    vk::AccessFlags::SHADER_WRITE,
+                ),
+                (
+                    vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::HOST,
+                    vk::AccessFlags::TRANSFER_READ | vk::AccessFlags::HOST_READ,
+                ),
             );
             device.cmd_copy_buffer(
                 slot.command,
@@ -497,17 +498,14 @@ impl Gpu<'_> {
                     .collect();
                 device.cmd_copy_buffer(slot.command, slot.output.get().raw, target.buffer, &rows);
             }
-            let to_host = vk::MemoryBarrier::default()
-                .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-                .dst_access_mask(vk::AccessFlags::HOST_READ);
-            device.cmd_pipeline_barrier(
+            memory_barrier(
+                device,
                 slot.command,
-                vk::PipelineStageFlags::TRANSFER,
-                vk::PipelineStageFlags::HOST,
-                vk::DependencyFlags::empty(),
-                &[to_host],
-                &[],
-                &[],
+                (
+                    vk::PipelineStageFlags::TRANSFER,
+                    vk::AccessFlags::TRANSFER_WRITE,
+                ),
+                (vk::PipelineStageFlags::HOST, vk::AccessFlags::HOST_READ),
             );
             device
                 .end_command_buffer(slot.command)

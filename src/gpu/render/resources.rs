@@ -12,7 +12,7 @@ use super::job::{B_FRAME, B_MATERIALS, B_OUTPUT, B_SKIPS, B_STATE, B_STATUS, B_T
 use super::plan::{ListForms, Split, Upload};
 use crate::gpu::bindings::{Lists, BINDINGS};
 use crate::gpu::buffer::Buffer;
-use crate::gpu::commands::submit_and_wait;
+use crate::gpu::commands::{command_pool, memory_barrier, submit_and_wait};
 use crate::gpu::context::Shared;
 use crate::gpu::error::{GpuError, VkResultExt};
 use crate::gpu::pipeline::TracePipeline;
@@ -172,14 +172,7 @@ impl Gpu<'_> {
         ];
         // SAFETY: valid create infos on a live device; handles owned by `pools`.
         unsafe {
-            pools.command_pool = device
-                .create_command_pool(
-                    &vk::CommandPoolCreateInfo::default()
-                        .queue_family_index(shared.queue_family)
-                        .flags(vk::CommandPoolCreateFlags::RESET_COMMAND_BUFFER),
-                    None,
-                )
-                .call("vkCreateCommandPool")?;
+            pools.command_pool = command_pool(&shared)?;
             pools.descriptor_pool = device
                 .create_descriptor_pool(
                     &vk::DescriptorPoolCreateInfo::default()
@@ -300,19 +293,17 @@ impl Gpu<'_> {
                                 size,
                             }],
                         );
-                        let barrier = vk::MemoryBarrier::default()
-                            .src_access_mask(vk::AccessFlags::TRANSFER_WRITE)
-                            .dst_access_mask(
-                                vk::AccessFlags::SHADER_READ | vk::AccessFlags::UNIFORM_READ,
-                            );
-                        device.cmd_pipeline_barrier(
+                        memory_barrier(
+                            device,
                             cmd,
-                            vk::PipelineStageFlags::TRANSFER,
-                            vk::PipelineStageFlags::COMPUTE_SHADER,
-                            vk::DependencyFlags::empty(),
-                            &[barrier],
-                            &[],
-                            &[],
+                            (
+                                vk::PipelineStageFlags::TRANSFER,
+                                vk::AccessFlags::TRANSFER_WRITE,
+                            ),
+                            (
+                                vk::PipelineStageFlags::COMPUTE_SHADER,
+                                vk::AccessFlags::SHADER_READ | vk::AccessFlags::UNIFORM_READ,
+                            ),
                         );
                     }
                 },
