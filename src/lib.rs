@@ -16,6 +16,7 @@ pub mod camera;
 pub mod check;
 pub mod compare;
 pub mod cpu;
+pub mod encode;
 mod error;
 pub mod features;
 pub mod framebuffer;
@@ -40,5 +41,6 @@ pub mod scene;
 pub mod timing;
 pub mod units;
 pub mod view;
+pub mod write_queue;
 
 pub use error::Error;

@@ -1,12 +1,14 @@
 //! What a render gives back: the image, and how it was made.
 
-use crate::framebuffer::Framebuffer;
+use crate::framebuffer::{Framebuffer, Image};
 use crate::memory::MemoryNeed;
 use crate::timing::Timings;
 
 /// A finished render (or pass) and what it took.
 pub struct RenderOutput {
-    pub framebuffer: Framebuffer,
+    /// Float values, or 8-bit pixels where the render was asked for them
+    /// (`RenderOptions::pixels`).
+    pub image: Image,
     pub timings: Timings,
     /// What rendered it, e.g. "GPU: llvmpipe (LLVM 15.0.6, 256 bits)" or "CPU reference (f32)".
     pub renderer: String,
@@ -21,4 +23,19 @@ pub struct RenderOutput {
     pub bvh: crate::bvh::BvhStats,
     /// Samples it took, over all pixels it rendered.
     pub samples: u64,
+}
+
+impl RenderOutput {
+    /// The float image (8-bit pixels as v / 255).
+    pub fn framebuffer(&self) -> std::borrow::Cow<'_, Framebuffer> {
+        self.image.to_float()
+    }
+
+    /// The float image, without a copy where it is one.
+    pub fn into_framebuffer(self) -> Framebuffer {
+        match self.image {
+            Image::Float(fb) => fb,
+            image => image.to_float().into_owned(),
+        }
+    }
 }

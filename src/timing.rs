@@ -8,6 +8,11 @@ use std::time::{Duration, Instant};
 pub const CLOSEST_RAYS: &str = "closest rays";
 /// The count of shadow rays a render cast.
 pub const SHADOW_RAYS: &str = "shadow rays";
+/// Bytes of finished pixels a GPU render read back to the host.
+pub const READBACK_BYTES: &str = "readback bytes";
+/// Bytes a GPU render copied to the device (scene lists and the frame);
+/// a list the device already holds from the last render is not copied.
+pub const UPLOADED_BYTES: &str = "uploaded bytes";
 /// Nanoseconds the device spent in a render's dispatches, from Vulkan
 /// timestamps around each (absent where the queue has none).
 pub const GPU_TIME_NS: &str = "gpu ns";

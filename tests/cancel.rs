@@ -53,7 +53,7 @@ fn a_flag_set_mid_render_ends_it_and_the_next_render_is_whole() {
         let flag = Arc::new(AtomicBool::new(false));
         let r = renderer(backend, [160, 120], &flag);
         let quiet = |_: u64, _: u64| {};
-        let whole = r.render(&scene, &quiet).expect("render").framebuffer;
+        let whole = r.render(&scene, &quiet).expect("render").into_framebuffer();
         let most = AtomicU64::new(0);
         let total = AtomicU64::new(0);
         let cut = r.render(&scene, &|done, all| {
@@ -64,7 +64,7 @@ fn a_flag_set_mid_render_ends_it_and_the_next_render_is_whole() {
         assert!(
             matches!(cut, Err(Error::Cancelled)),
             "{backend:?}: {:?}",
-            cut.map(|o| o.framebuffer.width)
+            cut.map(|o| o.image.width())
         );
         let (most, total) = (most.into_inner(), total.into_inner());
         if backend == Backend::Gpu {
@@ -75,7 +75,8 @@ fn a_flag_set_mid_render_ends_it_and_the_next_render_is_whole() {
         flag.store(false, Ordering::SeqCst);
         let again = r.render(&scene, &quiet).expect("render after a cancel");
         assert_eq!(
-            again.framebuffer.pixels, whole.pixels,
+            again.framebuffer().pixels,
+            whole.pixels,
             "{backend:?}: the render after a cancelled one differs"
         );
         assert_eq!(again.validation_messages, 0, "Vulkan validation messages");
@@ -110,7 +111,8 @@ fn a_flag_set_between_passes_keeps_the_passes_before_it() {
             .expect("render");
         assert_eq!(watched.history.len(), 2, "{backend:?}");
         assert_eq!(
-            done.output.framebuffer.pixels, watched.output.framebuffer.pixels,
+            done.output.framebuffer().pixels,
+            watched.output.framebuffer().pixels,
             "{backend:?}: the image of the passes before the flag"
         );
         // A flag already set cuts the first pass: no image at all.

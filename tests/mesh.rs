@@ -407,7 +407,7 @@ fn cameras_see_what_the_scene_moved_the_other_way_shows() {
         };
         glint::render::render(s, &options, &|_, _| {})
             .expect("renders")
-            .framebuffer
+            .into_framebuffer()
     };
     let classic = render_cpu(&base, w, h, f32_, WHITE);
     let identity = with_camera("camera eye: 0 0 0 look: 0 0 -1 up: 0 1 0 fov: 60");
@@ -454,7 +454,7 @@ fn cameras_see_what_the_scene_moved_the_other_way_shows() {
         };
         let on_gpu = glint::render::render(&world, &options, &|_, _| {})
             .expect("renders")
-            .framebuffer;
+            .into_framebuffer();
         let cmp = glint::compare::compare_framebuffers(&on_gpu, &seen, 1.0).expect("same size");
         assert_within(
             "moved camera, GPU vs CPU",

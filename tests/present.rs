@@ -94,7 +94,8 @@ fn the_devices_mean_is_the_hosts_after_every_pass() {
             if stop.adaptive {
                 assert!(partial > 0, "no pass was adaptive: {:?}", done.history);
             }
-            let (most, differ) = apart(&mean.read().expect("read back"), &done.output.framebuffer);
+            let (most, differ) =
+                apart(&mean.read().expect("read back"), &done.output.framebuffer());
             assert!(most <= 1, "final: {differ} pixels by up to {most} levels");
         }
         assert_eq!(ctx.validation_messages(), 0, "validation messages");

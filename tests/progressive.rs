@@ -118,7 +118,7 @@ fn estimated_error_tracks_the_true_error() {
         for &backend in &backends {
             let done = progressive(&scene, backend, Precision::F32, target, None);
             let estimate = done.report.estimated_rmse.expect("two passes at least");
-            let truth = rmse(&done.output.framebuffer, &reference.output.framebuffer);
+            let truth = rmse(&done.output.framebuffer(), &reference.output.framebuffer());
             eprintln!(
                 "{name} on {backend:?}: {} passes, estimate {estimate:.5}, true {truth:.5} (ratio {:.3}); reference {} passes",
                 done.report.passes,
@@ -148,7 +148,7 @@ fn a_noiseless_scene_stops_after_two_passes() {
     assert_eq!(done.stopped, Stopped::Noiseless);
     assert_eq!(done.report.passes, 2);
     assert_eq!(
-        done.output.framebuffer,
+        done.output.into_framebuffer(),
         render_cpu(&scene, W, H, Precision::F32, WHITE)
     );
 }
@@ -198,7 +198,7 @@ fn adaptive_passes_reach_the_target_with_fewer_samples() {
         for &backend in &backends {
             let done = run(&scene, &at(backend, Precision::F32, target, None, true));
             let estimate = done.report.estimated_rmse.expect("estimate");
-            let truth = rmse(&done.output.framebuffer, &reference.output.framebuffer);
+            let truth = rmse(&done.output.framebuffer(), &reference.output.framebuffer());
             eprintln!(
                 "{name} adaptive on {backend:?}: {} passes, {:.2} samples per pixel on average (uniform: {}), estimate {estimate:.5}, true {truth:.5} (ratio {:.3})",
                 done.report.passes,

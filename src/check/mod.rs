@@ -206,7 +206,7 @@ fn check_case(
 ) -> Result<CaseResult, Error> {
     let quiet = |_: u64, _: u64| {};
     let on_device = gpu.render(&case.scene, &quiet)?;
-    let mut image = on_device.framebuffer;
+    let mut image = on_device.framebuffer().into_owned();
     if options.plant_error.as_deref() == Some(case.name.as_str()) {
         plant(&mut image);
     }
@@ -216,8 +216,8 @@ fn check_case(
     // counters cannot wrap, which large tiles can.
     let twin_rays =
         twin_output.timings.counted(CLOSEST_RAYS) + twin_output.timings.counted(SHADOW_RAYS);
-    let twin = twin_output.framebuffer;
-    let truth = cpu64.render(&case.scene, &quiet)?.framebuffer;
+    let twin = twin_output.framebuffer().into_owned();
+    let truth = cpu64.render(&case.scene, &quiet)?.into_framebuffer();
     let against_twin = compare_framebuffers(&twin, &image, 1.0)?;
     let against_truth = compare_framebuffers(&truth, &image, 1.0)?;
     let t = &case.tolerance;

@@ -202,7 +202,7 @@ pub fn run(args: AccuracyArgs) -> anyhow::Result<ExitCode> {
                 dispatches.push(d.1);
                 by_device = false;
             }
-            image = Some(out.framebuffer);
+            image = Some(out.into_framebuffer());
         }
         let image = image.expect("at least one render");
         if !dispatches.is_empty() {
@@ -368,7 +368,7 @@ fn reference(
     if terminal {
         eprintln!();
     }
-    write_framebuffer(&done.output.framebuffer, &image_path, 95)?;
+    write_framebuffer(&done.output.framebuffer(), &image_path, 95)?;
     let about = format!(
         "reference: CPU f64, {} passes, {} samples per pixel, estimated RMSE {}, {:.1} s",
         done.report.passes,
@@ -380,5 +380,5 @@ fn reference(
     );
     std::fs::write(&key_path, format!("{key}{about}\n"))
         .with_context(|| format!("writing {}", key_path.display()))?;
-    Ok((done.output.framebuffer, about))
+    Ok((done.output.into_framebuffer(), about))
 }

@@ -71,7 +71,7 @@ pub(super) fn render(
         height: options.height,
         renderer: output.renderer.clone(),
     };
-    write_part(&output.framebuffer, &stamp, &path)
+    write_part(&output.framebuffer(), &stamp, &path)
         .with_context(|| format!("rendering {}", scene_path.display()))?;
     println!(
         "wrote {} ({part} of {}x{}: {}, {} pixels; {}, {:.1} ms); join with `glint stitch {} --parts {}`",

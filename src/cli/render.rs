@@ -4,7 +4,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use clap::Args;
-use glint::framebuffer::{check_output, write_framebuffer, DEFAULT_JPEG_QUALITY};
+use glint::framebuffer::{check_output, DEFAULT_JPEG_QUALITY};
 use glint::gpu::DeviceSelector;
 use glint::methods::Methods;
 use glint::progressive::{PassReport, StopAt, Stopped};
@@ -12,8 +12,11 @@ use glint::render::{pixel_path, RenderOptions, Renderer};
 use glint::scene::Scene;
 use indicatif::{ProgressBar, ProgressStyle};
 
-use glint::framebuffer::ImageFile;
+use glint::encode::{EncodeOptions, PngCompression};
+use glint::framebuffer::{Image, ImageFile};
 use glint::region::Crop;
+
+mod frames;
 
 use super::values::{parse_error_target, parse_pixel, parse_range, parse_rgb, parse_seconds};
 use super::{
@@ -52,20 +55,39 @@ impl Out {
         }
     }
 
+    /// Encodes and writes `image`, adding the two phases' times to
+    /// `timings` as `encode` and `write`.
     fn write(
         &self,
-        fb: &glint::framebuffer::Framebuffer,
+        image: &Image,
         crop: Option<&Crop>,
-        quality: u8,
+        options: &EncodeOptions,
+        timings: &mut glint::timing::Timings,
     ) -> Result<(), glint::Error> {
+        let fb = || image.to_float();
         match (self, crop) {
-            (Out::File(p), None) => write_framebuffer(fb, p, quality),
-            (Out::File(p), Some(c)) => glint::region::write_part(fb, c, p),
-            (Out::Stdout, None) => {
-                glint::framebuffer::write_framebuffer_to_stdout(fb, ImageFile::Png, quality)
+            (Out::File(p), Some(c)) => {
+                return timings.time("write", || glint::region::write_part(&fb(), c, p))
             }
-            (Out::Stdout, Some(c)) => glint::region::write_part_to_stdout(fb, c),
+            (Out::Stdout, Some(c)) => {
+                return timings.time("write", || glint::region::write_part_to_stdout(&fb(), c))
+            }
+            _ => {}
         }
+        let kind = match self {
+            Out::File(p) => ImageFile::of(p)?,
+            Out::Stdout => ImageFile::Png,
+        };
+        let bytes = timings
+            .time("encode", || image.encode(kind, options))
+            .map_err(|e| glint::Error::WriteImage {
+                path: self.path().to_path_buf(),
+                error: std::io::Error::other(e),
+            })?;
+        timings.time("write", || match self {
+            Out::File(p) => glint::framebuffer::write_bytes(p, &bytes),
+            Out::Stdout => glint::framebuffer::write_bytes_to_stdout(&bytes),
+        })
     }
 }
 
@@ -99,6 +121,10 @@ pub struct RenderArgs {
     /// JPEG quality (1-100).
     #[arg(long, default_value_t = DEFAULT_JPEG_QUALITY, value_parser = clap::value_parser!(u8).range(1..=100))]
     quality: u8,
+    /// PNG deflate effort: fast (fdeflate, a few ms at 1080p), default
+    /// (balanced, about 8x the time), best (smallest); pixels are the same.
+    #[arg(long, value_enum, default_value = "fast")]
+    png_compression: PngCompression,
     /// Enable the Vulkan validation layer (when installed) and report its messages.
     #[arg(long)]
     validation: bool,
@@ -194,6 +220,13 @@ pub struct RenderArgs {
 }
 
 impl RenderArgs {
+    fn encode_options(&self) -> EncodeOptions {
+        EncodeOptions {
+            jpeg_quality: self.quality,
+            png: self.png_compression,
+        }
+    }
+
     /// `--quick` applied: the preview's settings where no flag sets them.
     fn resolved(mut self) -> RenderArgs {
         if self.quick {
@@ -214,6 +247,17 @@ enum FrameFormat {
     Png,
     Ppm,
     Exr,
+}
+
+impl FrameFormat {
+    fn kind(self) -> ImageFile {
+        match self {
+            FrameFormat::Jpg => ImageFile::Jpeg,
+            FrameFormat::Png => ImageFile::Png,
+            FrameFormat::Ppm => ImageFile::Ppm,
+            FrameFormat::Exr => ImageFile::Exr,
+        }
+    }
 }
 
 /// `<scene stem>.jpg`, or `stdin.jpg` for a scene read from standard input.
@@ -320,6 +364,18 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
             uniform_lists: !args.storage_lists,
             ..Default::default()
         },
+        // What the file holds, converted where it is made; a crop's part
+        // file, a pixel's path and the window take floats.
+        pixels: match (&out, &args.crop, args.pixel, args.show, args.frames) {
+            (_, None, None, false, Some(_)) => {
+                glint::render::PixelFormat::for_file(args.frame_format.kind())
+            }
+            (Out::Stdout, None, None, false, None) => glint::render::PixelFormat::Rgb8,
+            (Out::File(p), None, None, false, None) if args.part.is_none() => {
+                ImageFile::of(p).map_or(Default::default(), glint::render::PixelFormat::for_file)
+            }
+            _ => glint::render::PixelFormat::Float,
+        },
     };
     if let Some(frames) = args.frames {
         let dir = if defaulted {
@@ -335,7 +391,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         } else {
             out.path().to_path_buf()
         };
-        return animate(&scene, &options, &args, frames, &dir);
+        return frames::animate(&scene, &options, &args, frames, &dir);
     }
     if let Some(pixel) = args.pixel {
         let start = Instant::now();
@@ -411,13 +467,15 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         eprintln!("note: {note}");
     }
     validation_verdict(output.validation_messages)?;
-    let write_start = Instant::now();
-    out.write(&output.framebuffer, args.crop.as_ref(), args.quality)
-        .with_context(|| format!("rendering {}", args.scene.display()))?;
-    let write_time = write_start.elapsed();
     let mut timings = output.timings.clone();
     timings.phases.insert(0, ("parse", parse_time));
-    timings.add("write", write_time);
+    out.write(
+        &output.image,
+        args.crop.as_ref(),
+        &args.encode_options(),
+        &mut timings,
+    )
+    .with_context(|| format!("rendering {}", args.scene.display()))?;
     let what = match &args.crop {
         Some(c) => format!(
             "pixels {c} of {}x{}, a part for `glint stitch`",
@@ -445,7 +503,7 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
     }
     if args.show {
         let title = format!("{} ({})", out.path().display(), output.renderer);
-        glint::view::show(output.framebuffer.clone(), title)?;
+        glint::view::show(output.framebuffer().into_owned(), title)?;
     }
     if args.stats || args.verbose {
         say.line(super::summary::stats(&output, &timings));
@@ -537,8 +595,14 @@ fn render_progressive(
     bar.finish_and_clear();
     let done = result?;
     validation_verdict(done.output.validation_messages)?;
-    out.write(&done.output.framebuffer, None, args.quality)
-        .with_context(|| format!("rendering {}", args.scene.display()))?;
+    let mut write_timings = glint::timing::Timings::default();
+    out.write(
+        &done.output.image,
+        None,
+        &args.encode_options(),
+        &mut write_timings,
+    )
+    .with_context(|| format!("rendering {}", args.scene.display()))?;
     let r = done.report;
     let estimate = r
         .estimated_rmse
@@ -614,103 +678,4 @@ fn out_is_8_bit(out: &Out) -> bool {
         Out::File(p) => ImageFile::of(p).is_ok_and(|f| !f.is_float()),
         Out::Stdout => true,
     }
-}
-
-/// Renders frames of an animation with one `Renderer` (device and pipelines
-/// built once), a progress bar over frames, each frame written as it is done.
-fn animate(
-    scene: &Scene,
-    options: &RenderOptions,
-    args: &RenderArgs,
-    frames: u32,
-    dir: &Path,
-) -> anyhow::Result<ExitCode> {
-    let share = match &args.part {
-        Some(part) => {
-            let part = super::part::resolve(part)?;
-            match glint::parts::cut::frame_share(frames, part.index, part.count) {
-                Some(share) => Some((part, share)),
-                None => {
-                    println!(
-                        "{part} has no frames ({} parts share {frames} frames); nothing to do",
-                        part.count
-                    );
-                    return Ok(ExitCode::SUCCESS);
-                }
-            }
-        }
-        None => None,
-    };
-    let [first, last] = share.map_or(args.frame_range.unwrap_or([0, frames - 1]), |s| s.1);
-    std::fs::create_dir_all(dir)
-        .with_context(|| format!("creating the frame directory {}", dir.display()))?;
-    if share.is_some() {
-        let settings = format!(
-            "{} frames {frames}",
-            super::part::settings_text(options, scene)
-        );
-        let digest = glint::parts::stamp::render_digest(scene, &settings);
-        super::part::claim_frames(dir, &digest)?;
-    }
-    let renderer = Renderer::new(options)?;
-    if let Some(note) = renderer.note() {
-        eprintln!("note: {note}");
-    }
-    let effects = options.effects(scene);
-    if !scene.has_motion() {
-        eprintln!(
-            "note: nothing in {} moves (no `vel:`); every frame is the same image",
-            args.scene.display()
-        );
-    }
-    let digits = (frames - 1).to_string().len().max(3);
-    let ext = match args.frame_format {
-        FrameFormat::Jpg => "jpg",
-        FrameFormat::Png => "png",
-        FrameFormat::Ppm => "ppm",
-        FrameFormat::Exr => "exr",
-    };
-    let bar = ProgressBar::new(u64::from(last - first + 1));
-    bar.set_style(
-        ProgressStyle::with_template(
-            "{spinner} frames [{bar:30}] {pos}/{len} {elapsed} (eta {eta})",
-        )
-        .expect("valid template")
-        .progress_chars("=> "),
-    );
-    let start = Instant::now();
-    let mut kept = 0;
-    for i in first..=last {
-        let path = dir.join(format!("{i:0digits$}.{ext}"));
-        // A requeued task of an array keeps the frames it finished.
-        if share.is_some() && super::part::frame_done(&path) {
-            kept += 1;
-            bar.inc(1);
-            continue;
-        }
-        let at = scene.at_time(effects.frame_time(i));
-        let output = renderer.render(&at, &|_, _| {})?;
-        validation_verdict(renderer.validation_messages())
-            .with_context(|| format!("rendering frame {i}"))?;
-        write_framebuffer(&output.framebuffer, &path, args.quality)
-            .with_context(|| format!("writing frame {i}"))?;
-        if args.verbose {
-            bar.println(format!("{}:\n{}", path.display(), output.timings));
-        }
-        bar.inc(1);
-    }
-    bar.finish_and_clear();
-    println!(
-        "wrote frames {first:0digits$}..{last:0digits$}.{ext} to {} ({}x{}, {}, {:.2} s, {} fps scene time)",
-        dir.display(),
-        args.width,
-        args.height,
-        renderer.name(),
-        start.elapsed().as_secs_f64(),
-        effects.fps
-    );
-    if let Some((part, _)) = share {
-        println!("({part} of the frames; {kept} of them were already there and kept)");
-    }
-    Ok(ExitCode::SUCCESS)
 }

@@ -47,6 +47,11 @@ pub fn stats(output: &glint::render::RenderOutput, timings: &glint::timing::Timi
             timings.counted(glint::timing::CPU_TIME_NS) as f64 / 1e6
         ));
     }
+    for name in [glint::timing::READBACK_BYTES, glint::timing::UPLOADED_BYTES] {
+        if timings.has_count(name) {
+            s.push_str(&format!("\n  {name} {}", timings.counted(name)));
+        }
+    }
     s.push_str(&format!("\n  samples     {}", output.samples));
     s.push_str(&format!("\n  bvh         {}", output.bvh));
     for (name, d) in &timings.phases {

@@ -23,7 +23,7 @@ mod options;
 mod progressive;
 mod region;
 
-pub use options::{Backend, RenderOptions};
+pub use options::{Backend, PixelFormat, RenderOptions};
 use region::Region;
 
 // A part's ends fall between the CPU's packet bands and the GPU's
@@ -454,8 +454,32 @@ impl Renderer {
         scene: &Scene,
         p: &Prepared,
         packed: &Packed,
+        timings: Timings,
+        region: Region,
+        progress: &(dyn Fn(u64, u64) + Sync),
+    ) -> Result<RenderOutput, Error> {
+        self.render_prepared_as(
+            scene,
+            p,
+            packed,
+            timings,
+            region,
+            self.options.pixels,
+            progress,
+        )
+    }
+
+    /// `render_prepared` into `pixels` (progressive passes accumulate
+    /// floats whatever the options ask for).
+    #[allow(clippy::too_many_arguments)]
+    fn render_prepared_as(
+        &self,
+        scene: &Scene,
+        p: &Prepared,
+        packed: &Packed,
         mut timings: Timings,
         region: Region,
+        pixels: PixelFormat,
         progress: &(dyn Fn(u64, u64) + Sync),
     ) -> Result<RenderOutput, Error> {
         let mut need = MemoryNeed::image(p.camera.width, p.camera.height);
@@ -530,8 +554,14 @@ impl Renderer {
             // `pack` makes each engine its own.
             _ => unreachable!("a scene packed for another backend"),
         };
+        let image = match pixels {
+            PixelFormat::Float => crate::framebuffer::Image::Float(framebuffer),
+            PixelFormat::Rgb8 => {
+                crate::framebuffer::Image::Rgb8(timings.time("to 8-bit", || framebuffer.to_rgb8()))
+            }
+        };
         Ok(RenderOutput {
-            framebuffer,
+            image,
             renderer: self.name(),
             validation_messages: self.validation_messages(),
             timings,

@@ -52,6 +52,31 @@ pub struct RenderOptions {
     /// `None`: compile them every run.
     pub pipeline_cache: Option<std::path::PathBuf>,
     pub gpu: GpuRenderOptions,
+    /// What the image is for: float values, or the 8-bit pixels of a PNG,
+    /// JPEG or PPM, converted where they are made (by the device's pack
+    /// shader, which then reads back 4 bytes a pixel instead of 12).
+    pub pixels: PixelFormat,
+}
+
+/// The pixels a render hands back (`RenderOutput::image`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+pub enum PixelFormat {
+    /// Linear f32 RGB, unclamped as rendered (`Image::Float`).
+    #[default]
+    Float,
+    /// `framebuffer::to_u8` of each channel (`Image::Rgb8`).
+    Rgb8,
+}
+
+impl PixelFormat {
+    /// What a file of `kind` holds.
+    pub fn for_file(kind: crate::framebuffer::ImageFile) -> PixelFormat {
+        if kind.is_float() {
+            PixelFormat::Float
+        } else {
+            PixelFormat::Rgb8
+        }
+    }
 }
 
 impl Default for RenderOptions {
@@ -72,6 +97,7 @@ impl Default for RenderOptions {
             packets: true,
             pipeline_cache: None,
             gpu: GpuRenderOptions::default(),
+            pixels: PixelFormat::Float,
         }
     }
 }

@@ -4,7 +4,8 @@
 
 use std::time::Instant;
 
-use super::{Region, RenderOutput, Renderer};
+use super::{PixelFormat, Region, RenderOutput, Renderer};
+use crate::framebuffer::Image;
 use crate::progressive::{
     Accumulator, Blocks, PassReport, Progressive, StopAt, Stopped, ADAPTIVE_FIRST_PASSES,
     MIN_PASSES_FOR_TARGET,
@@ -66,12 +67,19 @@ impl Renderer {
             } else {
                 Region::Blocks(&blocks)
             };
-            let out =
-                match self.render_prepared(scene, &p, &packed, pass_timings, region, &|_, _| {}) {
-                    Err(Error::Cancelled) if last.is_some() => break Stopped::Cancelled,
-                    out => out?,
-                };
-            acc.add_where(&out.framebuffer, &|x, y| blocks.is_active(x, y));
+            let out = match self.render_prepared_as(
+                scene,
+                &p,
+                &packed,
+                pass_timings,
+                region,
+                PixelFormat::Float,
+                &|_, _| {},
+            ) {
+                Err(Error::Cancelled) if last.is_some() => break Stopped::Cancelled,
+                out => out?,
+            };
+            acc.add_where(&out.framebuffer(), &|x, y| blocks.is_active(x, y));
             match last.as_mut() {
                 None => last = Some(out),
                 Some(l) => {
@@ -112,7 +120,10 @@ impl Renderer {
             }
         };
         let mut output = last.expect("at least one pass");
-        output.framebuffer = acc.mean();
+        output.image = match self.options.pixels {
+            PixelFormat::Float => Image::Float(acc.mean()),
+            PixelFormat::Rgb8 => Image::Rgb8(acc.mean().to_rgb8()),
+        };
         let report = *history.last().expect("at least one pass");
         Ok(Progressive {
             output,

@@ -287,7 +287,7 @@ fn show_preview(
         .phase("dispatch")
         .unwrap_or_default()
         .saturating_sub(t.phase("pipeline").unwrap_or_default());
-    let small = out.framebuffer;
+    let small = out.into_framebuffer();
     let (w, h) = (job.width as usize, job.height as usize);
     let (sw, sh) = (small.width as usize, small.height as usize);
     let pixels = (0..h)
@@ -399,7 +399,7 @@ fn refine(
         // The last pass's image, already shown: now with the render's rate.
         post(Update::Frame {
             serial: job.serial,
-            image: Arc::new(done.output.framebuffer),
+            image: Arc::new(done.output.into_framebuffer()),
             report: done.report,
             rays_per_second: (counted > 0 && seconds > 0.0).then(|| counted as f64 / seconds),
             label,
@@ -425,8 +425,8 @@ fn difference(
 ) -> Result<(), Error> {
     let quiet = |_: u64, _: u64| {};
     let start = Instant::now();
-    let main = a.render(scene, &quiet)?.framebuffer;
-    let reference = b.render(scene, &quiet)?.framebuffer;
+    let main = a.render(scene, &quiet)?.into_framebuffer();
+    let reference = b.render(scene, &quiet)?.into_framebuffer();
     let cmp = compare_framebuffers(&reference, &main, 1.0)?;
     let heat = cmp.diff_image(&reference.to_rgb8());
     let image = Framebuffer {

@@ -28,7 +28,9 @@ use crate::layout::{
     uniform_copy, GpuPixelState, GpuScene, GpuStatus, GpuTile, ADDRESS_LISTS, PATH_HEADER,
     PATH_PER_LIGHT, UNIFORM_FIRST, UNIFORM_LISTS, WORKGROUP_SIZE,
 };
-use crate::timing::{Timings, CLOSEST_RAYS, GPU_TIME_NS, SHADOW_RAYS};
+use crate::timing::{
+    Timings, CLOSEST_RAYS, GPU_TIME_NS, READBACK_BYTES, SHADOW_RAYS, UPLOADED_BYTES,
+};
 
 /// One run of the pass loop: what to render, how, and whether its tiles
 /// start with the resumable shader (`TileWork::resumable`).
@@ -163,7 +165,7 @@ impl Gpu<'_> {
             }
             uploads[0].bytes = bytemuck::bytes_of(&frame).to_vec().into();
         }
-        self.upload(res, &uploads)?;
+        let uploaded = self.upload(res, &uploads)?;
         for slot in &mut res.slots {
             self.bind_slot(
                 slot,
@@ -176,6 +178,7 @@ impl Gpu<'_> {
             )?;
         }
         timings.add("upload", upload_start.elapsed());
+        timings.count(UPLOADED_BYTES, uploaded);
 
         let mut in_flight: VecDeque<(usize, TileWork)> = VecDeque::new();
         let total_pixels: u64 = tiles.iter().map(|t| u64::from(t.size[0] * t.size[1])).sum();
@@ -184,6 +187,8 @@ impl Gpu<'_> {
         let mut device_time = Duration::ZERO;
         let mut timed_by_device = true;
         let mut readback = Duration::ZERO;
+        // What the host reads of finished tiles (status words left out).
+        let mut readback_bytes = 0u64;
         let mut passes = 0u64;
         let mut retries = 0u64;
         let mut redone = 0u64;
@@ -279,6 +284,7 @@ impl Gpu<'_> {
                 };
                 sink(work.rect, &texels[..n]);
                 readback += start.elapsed();
+                readback_bytes += n as u64 * TEXEL_BYTES;
                 rays[0] += work.rays[0] + u64::from(status.closest_rays);
                 rays[1] += work.rays[1] + u64::from(status.shadow_rays);
                 done_pixels += u64::from(work.left);
@@ -299,6 +305,7 @@ impl Gpu<'_> {
             dispatch_start.elapsed().saturating_sub(readback),
         );
         timings.add("readback", readback);
+        timings.count(READBACK_BYTES, readback_bytes);
         timings.count("passes", passes);
         if timed_by_device {
             timings.count(GPU_TIME_NS, device_time.as_nanos() as u64);

@@ -75,6 +75,10 @@ pub(super) struct Reusable {
     pub(super) usage: vk::BufferUsageFlags,
     pub(super) location: MemoryLocation,
     pub(super) buffer: Option<Buffer>,
+    /// What was last uploaded into `buffer`: its length and xxh3 digest
+    /// (None once the buffer is recreated), so that a render whose list
+    /// did not change (an animation's static triangles) uploads nothing.
+    pub(super) holds: Option<(usize, u64)>,
 }
 
 impl Reusable {
@@ -88,6 +92,7 @@ impl Reusable {
             usage,
             location,
             buffer: None,
+            holds: None,
         }
     }
 
@@ -100,6 +105,7 @@ impl Reusable {
         let size = size.max(16);
         if self.buffer.as_ref().is_none_or(|b| b.size < size) {
             self.buffer = None; // free before allocating the larger one
+            self.holds = None;
             self.buffer = Some(Buffer::new(
                 shared,
                 &self.name,
@@ -262,13 +268,24 @@ impl Gpu<'_> {
     }
 
     /// Copies each list into its device-local buffer through the staging
-    /// buffer, one list per submit so staging never exceeds the largest list.
-    pub(super) fn upload(&self, res: &mut Resources, uploads: &[Upload]) -> Result<(), GpuError> {
+    /// buffer, one list per submit so staging never exceeds the largest
+    /// list; a list whose buffer already holds the same bytes is skipped.
+    /// Returns the bytes uploaded.
+    pub(super) fn upload(&self, res: &mut Resources, uploads: &[Upload]) -> Result<u64, GpuError> {
         let shared = &self.shared;
         let device = &shared.device;
+        let mut uploaded = 0;
         for u in uploads {
             let size = u.bytes.len() as u64;
-            let dst = scene_buffer(&mut res.scene, shared, u.binding, size)?.raw;
+            let holds = (u.bytes.len(), xxhash_rust::xxh3::xxh3_64(&u.bytes));
+            let reusable = scene_reusable(&mut res.scene, u.binding);
+            let dst = reusable.at_least(shared, size)?.raw;
+            if reusable.holds == Some(holds) {
+                continue;
+            }
+            // Unknown until the copy below is waited for.
+            reusable.holds = None;
+            uploaded += size;
             let staging = res.staging.at_least(shared, size)?;
             staging.write(&u.bytes);
             // The previous upload was waited for, so the command buffer,
@@ -308,8 +325,9 @@ impl Gpu<'_> {
                     }
                 },
             )?;
+            scene_reusable(&mut res.scene, u.binding).holds = Some(holds);
         }
-        Ok(())
+        Ok(uploaded)
     }
 
     pub(super) fn create_slot(&self, pools: &mut Pools, index: usize) -> Result<Slot, GpuError> {
@@ -455,12 +473,15 @@ pub(super) fn scene_buffer<'a>(
     binding: usize,
     size: u64,
 ) -> Result<&'a mut Buffer, GpuError> {
+    scene_reusable(scene, binding).at_least(shared, size)
+}
+
+fn scene_reusable(scene: &mut [(usize, Reusable)], binding: usize) -> &mut Reusable {
     scene
         .iter_mut()
         .find(|(b, _)| *b == binding)
         .map(|(_, r)| r)
         .expect("every upload has a scene buffer")
-        .at_least(shared, size)
 }
 
 pub(super) fn usage_for(ty: vk::DescriptorType) -> vk::BufferUsageFlags {

@@ -1,0 +1,225 @@
+//! The host path of a render (`encode`, the 8-bit pixels, pipelined
+//! frames, the scene kept on the device): each shortcut gives the bytes the
+//! plain path gives.
+//!
+//! - An 8-bit render (`PixelFormat::Rgb8`, what a PNG, JPEG or PPM asks
+//!   for) equals the float render's `to_rgb8`, on every backend, on the
+//!   classic scenes and the effect scenes.
+//! - Every 8-bit file written from those pixels decodes to them (PNG and
+//!   PPM exactly; JPEG as the same encode of the same pixels).
+//! - Frames written by `--frames` (rendered while the last is encoded)
+//!   equal single renders at each frame's time.
+//! - A GPU animation whose triangles do not move uploads them once.
+
+mod common;
+
+use std::path::Path;
+
+use common::cli::{glint, tmp};
+use common::*;
+use glint::encode::EncodeOptions;
+use glint::framebuffer::{Image, ImageFile};
+use glint::render::{Backend, PixelFormat, RenderOptions, Renderer};
+use glint::scene::Scene;
+use glint::timing::UPLOADED_BYTES;
+
+const W: u32 = 96;
+const H: u32 = 72;
+
+fn backends() -> Vec<Backend> {
+    let mut b = vec![Backend::Cpu];
+    if gpu().is_some() {
+        b.push(Backend::Gpu);
+    }
+    b
+}
+
+fn scenes() -> Vec<(String, Scene)> {
+    let mut all = Vec::new();
+    for name in ["soft_shadows", "antialias", "motion_blur", "reflect"] {
+        let path = repo_path(&format!("scenes/effects/{name}.scene"));
+        all.push((
+            name.to_string(),
+            glint::scene::read_scene(&path).expect("parses"),
+        ));
+    }
+    match classic_dir() {
+        Some(_) => {
+            for name in CLASSIC {
+                all.push((
+                    name.to_string(),
+                    classic_scene(name).expect("classic scene"),
+                ));
+            }
+        }
+        None => notice("SKIPPED: the classic scenes in host_path (no ../shared/scenes/classic)"),
+    }
+    all
+}
+
+fn render(scene: &Scene, backend: Backend, pixels: PixelFormat) -> Image {
+    let options = RenderOptions {
+        width: W,
+        height: H,
+        backend,
+        pixels,
+        ..Default::default()
+    };
+    Renderer::new(&options)
+        .expect("renderer")
+        .render(scene, &|_, _| {})
+        .expect("renders")
+        .image
+}
+
+#[test]
+fn eight_bit_renders_equal_the_float_image_converted() {
+    for backend in backends() {
+        for (name, scene) in scenes() {
+            let float = render(&scene, backend, PixelFormat::Float);
+            let bytes = render(&scene, backend, PixelFormat::Rgb8);
+            let Image::Float(fb) = &float else {
+                panic!("{name}: a float render gave 8-bit pixels");
+            };
+            let Image::Rgb8(img) = &bytes else {
+                panic!("{name}: an 8-bit render gave floats");
+            };
+            assert_eq!(img, &fb.to_rgb8(), "{name} on {backend:?}");
+            for kind in [ImageFile::Png, ImageFile::Ppm] {
+                let file = bytes
+                    .encode(kind, &EncodeOptions::default())
+                    .expect("encodes");
+                let back = image::load_from_memory(&file).expect("decodes").to_rgb8();
+                assert_eq!(&back, img, "{name} on {backend:?} as {kind:?}");
+            }
+            let jpeg = |i: &Image| i.encode(ImageFile::Jpeg, &EncodeOptions::default());
+            assert_eq!(jpeg(&bytes), jpeg(&float), "{name} on {backend:?} as JPEG");
+        }
+    }
+}
+
+/// A scene whose lights move: frames differ, the triangles stay.
+fn moving_lights() -> String {
+    let text = std::fs::read_to_string(repo_path("scenes/showcase.scene")).expect("showcase");
+    // A light's block is `light`, `pos:`, `col:`; the velocity follows.
+    let mut in_light = false;
+    let mut out = Vec::new();
+    for l in text.lines() {
+        let word = l.split_whitespace().next().unwrap_or("");
+        out.push(l.to_string());
+        match word {
+            "light" => in_light = true,
+            "col:" if in_light => {
+                out.push("vel: 1.5 0 -1".into());
+                in_light = false;
+            }
+            "pos:" => {}
+            _ => in_light = false,
+        }
+    }
+    out.join("\n")
+}
+
+#[test]
+fn pipelined_frames_equal_single_renders() {
+    let dir = tmp();
+    let scene_path = dir.path().join("moving.scene");
+    std::fs::write(&scene_path, moving_lights()).expect("write scene");
+    let scene = glint::scene::read_scene(&scene_path).expect("parses");
+    assert!(scene.has_motion(), "the test scene's lights move");
+    let (w, h) = ("64", "48");
+    for (format, ext) in [("png", "png"), ("ppm", "ppm")] {
+        let out = glint(
+            &[
+                "render",
+                scene_path.to_str().expect("utf-8"),
+                "frames",
+                "--frames",
+                "5",
+                "--frame-format",
+                format,
+                "--backend",
+                "cpu",
+                "--width",
+                w,
+                "--height",
+                h,
+            ],
+            dir.path(),
+        );
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let options = RenderOptions {
+            width: 64,
+            height: 48,
+            backend: Backend::Cpu,
+            ..Default::default()
+        };
+        let renderer = Renderer::new(&options).expect("renderer");
+        let effects = options.effects(&scene);
+        let mut distinct = std::collections::HashSet::new();
+        for i in 0..5u32 {
+            let want = renderer
+                .render(&scene.at_time(effects.frame_time(i)), &|_, _| {})
+                .expect("renders")
+                .framebuffer()
+                .to_rgb8();
+            let file = dir.path().join(format!("frames/{i:03}.{ext}"));
+            let got = read(&file);
+            assert_eq!(got, want, "frame {i} as {format}");
+            distinct.insert(got.into_raw());
+        }
+        assert!(distinct.len() > 1, "the frames should differ");
+        let left: Vec<_> = std::fs::read_dir(dir.path().join("frames"))
+            .expect("frames")
+            .filter_map(|e| e.ok())
+            .filter(|e| e.file_name().to_string_lossy().ends_with(".part"))
+            .collect();
+        assert!(left.is_empty(), "temporary files left: {left:?}");
+        std::fs::remove_dir_all(dir.path().join("frames")).expect("clean");
+    }
+}
+
+fn read(path: &Path) -> image::RgbImage {
+    glint::framebuffer::read_image(path).expect("reads")
+}
+
+/// The second and later frames of a GPU animation upload what changed (the
+/// frame's parameters, the moving lights), not the triangles again.
+#[test]
+fn an_animation_uploads_its_static_triangles_once() {
+    if gpu().is_none() {
+        return;
+    }
+    let scene = common::scene_from(&moving_lights());
+    let options = RenderOptions {
+        width: 48,
+        height: 32,
+        backend: Backend::Gpu,
+        ..Default::default()
+    };
+    let renderer = Renderer::new(&options).expect("renderer");
+    let effects = options.effects(&scene);
+    let uploaded: Vec<u64> = (0..4)
+        .map(|i| {
+            let out = renderer
+                .render(&scene.at_time(effects.frame_time(i)), &|_, _| {})
+                .expect("renders");
+            out.timings.counted(UPLOADED_BYTES)
+        })
+        .collect();
+    let triangles = scene.triangles.len() as u64 * 48; // 3 positions of 16 bytes at least
+    assert!(
+        uploaded[0] > triangles,
+        "the first frame uploads the scene: {uploaded:?} bytes, triangles {triangles}"
+    );
+    for (i, &u) in uploaded.iter().enumerate().skip(1) {
+        assert!(
+            u > 0 && u < triangles,
+            "frame {i} uploaded {u} bytes (all frames: {uploaded:?}); the triangles alone are about {triangles}"
+        );
+    }
+}
