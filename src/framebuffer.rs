@@ -108,25 +108,10 @@ impl Image {
     /// The bytes of a `kind` file: float values for EXR (8-bit ones as
     /// v / 255), else the 8-bit conversion.
     pub fn encode(&self, kind: ImageFile, options: &EncodeOptions) -> Result<Vec<u8>, String> {
-        let (w, h) = (self.width(), self.height());
-        if kind.is_float() {
-            let float = self.to_float();
-            let pixels = Pixels {
-                bytes: bytemuck::cast_slice(&float.pixels),
-                width: w,
-                height: h,
-                color: image::ExtendedColorType::Rgb32F,
-            };
-            return crate::encode::encode(pixels, kind, options);
+        match self {
+            Image::Float(fb) => encode_framebuffer(fb, kind, options),
+            Image::Rgb8(img) => encode_rgb8(img, kind, options),
         }
-        let rgb = self.to_rgb8();
-        let pixels = Pixels {
-            bytes: rgb.as_raw(),
-            width: w,
-            height: h,
-            color: image::ExtendedColorType::Rgb8,
-        };
-        crate::encode::encode(pixels, kind, options)
     }
 }
 
@@ -154,12 +139,23 @@ pub fn encode_framebuffer(
         };
         return crate::encode::encode(pixels, kind, options);
     }
-    let rgb = fb.to_rgb8();
+    encode_rgb8(&fb.to_rgb8(), kind, options)
+}
+
+/// `Image::encode` of a borrowed 8-bit image (as floats v / 255 for EXR).
+pub fn encode_rgb8(
+    img: &RgbImage,
+    kind: ImageFile,
+    options: &EncodeOptions,
+) -> Result<Vec<u8>, String> {
+    if kind.is_float() {
+        return encode_framebuffer(&Image::Rgb8(img.clone()).to_float(), kind, options);
+    }
     crate::encode::encode(
         Pixels {
-            bytes: rgb.as_raw(),
-            width: fb.width,
-            height: fb.height,
+            bytes: img.as_raw(),
+            width: img.width(),
+            height: img.height(),
             color: image::ExtendedColorType::Rgb8,
         },
         kind,
@@ -205,23 +201,8 @@ pub fn write_bytes(path: &Path, bytes: &[u8]) -> Result<(), Error> {
 /// stores 8-bit values v / 255 as floats).
 pub fn write_image(img: &RgbImage, path: &Path, jpeg_quality: u8) -> Result<(), Error> {
     let kind = ImageFile::of(path)?;
-    let options = EncodeOptions::with_quality(jpeg_quality);
-    let bytes = if kind.is_float() {
-        let fb = Image::Rgb8(img.clone());
-        fb.encode(kind, &options)
-    } else {
-        crate::encode::encode(
-            Pixels {
-                bytes: img.as_raw(),
-                width: img.width(),
-                height: img.height(),
-                color: image::ExtendedColorType::Rgb8,
-            },
-            kind,
-            &options,
-        )
-    }
-    .map_err(|e| encode_error(path, e))?;
+    let bytes = encode_rgb8(img, kind, &EncodeOptions::with_quality(jpeg_quality))
+        .map_err(|e| encode_error(path, e))?;
     write_bytes(path, &bytes)
 }
 

@@ -137,10 +137,7 @@ impl WriteQueue {
     /// Waits for every frame handed over; the workers' encode and write
     /// times, or the first failure.
     pub fn finish(mut self) -> Result<Timings, Error> {
-        self.sender = None;
-        for w in self.workers.drain(..) {
-            let _ = w.join();
-        }
+        self.join();
         self.check()?;
         Ok(std::mem::take(
             &mut *self
@@ -156,6 +153,13 @@ impl Drop for WriteQueue {
     /// Dropped without `finish` (an error elsewhere): the frames handed
     /// over are still written whole.
     fn drop(&mut self) {
+        self.join();
+    }
+}
+
+impl WriteQueue {
+    /// Closes the queue and waits for the workers to write what it holds.
+    fn join(&mut self) {
         self.sender = None;
         for w in self.workers.drain(..) {
             let _ = w.join();

@@ -57,16 +57,19 @@ fn scenes() -> Vec<(String, Scene)> {
     all
 }
 
-fn render(scene: &Scene, backend: Backend, pixels: PixelFormat) -> Image {
+fn renderer(width: u32, height: u32, backend: Backend, pixels: PixelFormat) -> Renderer {
     let options = RenderOptions {
-        width: W,
-        height: H,
+        width,
+        height,
         backend,
         pixels,
         ..Default::default()
     };
-    Renderer::new(&options)
-        .expect("renderer")
+    Renderer::new(&options).expect("renderer")
+}
+
+fn render(scene: &Scene, backend: Backend, pixels: PixelFormat) -> Image {
+    renderer(W, H, backend, pixels)
         .render(scene, &|_, _| {})
         .expect("renders")
         .image
@@ -152,14 +155,8 @@ fn pipelined_frames_equal_single_renders() {
             "{}",
             String::from_utf8_lossy(&out.stderr)
         );
-        let options = RenderOptions {
-            width: 64,
-            height: 48,
-            backend: Backend::Cpu,
-            ..Default::default()
-        };
-        let renderer = Renderer::new(&options).expect("renderer");
-        let effects = options.effects(&scene);
+        let renderer = renderer(64, 48, Backend::Cpu, PixelFormat::Float);
+        let effects = renderer.options().effects(&scene);
         let mut distinct = std::collections::HashSet::new();
         for i in 0..5u32 {
             let want = renderer
@@ -195,14 +192,8 @@ fn an_animation_uploads_its_static_triangles_once() {
         return;
     }
     let scene = common::scene_from(&moving_lights());
-    let options = RenderOptions {
-        width: 48,
-        height: 32,
-        backend: Backend::Gpu,
-        ..Default::default()
-    };
-    let renderer = Renderer::new(&options).expect("renderer");
-    let effects = options.effects(&scene);
+    let renderer = renderer(48, 32, Backend::Gpu, PixelFormat::Float);
+    let effects = renderer.options().effects(&scene);
     let uploaded: Vec<u64> = (0..4)
         .map(|i| {
             let out = renderer

@@ -83,7 +83,7 @@ impl Tolerance {
 pub struct Warning {
     pub kind: Tolerance,
     pub path: PathBuf,
-    /// "line 12", "byte 4096" or a JSON path such as "meshes[0].primitives[1]".
+    /// "line 12", "byte 4096" or a JSON path such as `meshes[0].primitives[1]`.
     pub at: Option<String>,
     pub message: String,
 }

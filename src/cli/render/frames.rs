@@ -16,6 +16,11 @@ use indicatif::{ProgressBar, ProgressStyle};
 use super::{FrameFormat, RenderArgs};
 use crate::cli::validation_verdict;
 
+/// Threads that encode and write frames: two keep one frame encoding while
+/// the next is handed over; JPEG's strips run on the render's thread pool
+/// beside the render, so more writers add no cores.
+const WRITERS: usize = 2;
+
 /// Renders frames of an animation with one `Renderer` (device and pipelines
 /// built once), a progress bar over frames, each frame written as it is done.
 pub(super) fn animate(
@@ -82,7 +87,7 @@ pub(super) fn animate(
     let mut kept = 0;
     // Frames are encoded and written on workers while the next renders.
     let written = bar.clone();
-    let queue = WriteQueue::new(2, move |_| written.inc(1));
+    let queue = WriteQueue::new(WRITERS, move |_| written.inc(1));
     let kind = args.frame_format.kind();
     // Nothing moves: one render and one encode serve every frame.
     let mut still: Option<Arc<Encoded>> = None;
@@ -128,7 +133,7 @@ pub(super) fn animate(
     if args.verbose {
         bar.suspend(|| {
             eprintln!(
-                "all frames, rendered:\n{render_timings}\nencoded and written on 2 workers beside the renders:\n{write_timings}"
+                "all frames, rendered:\n{render_timings}\nencoded and written on {WRITERS} workers beside the renders:\n{write_timings}"
             )
         });
     }
