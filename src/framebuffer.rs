@@ -19,8 +19,19 @@ pub struct Framebuffer {
 
 /// The image convention's 8-bit value: `v * 255` rounded (half away from
 /// zero, as C's `round`), after clamping to [0, 1]; no gamma.
+#[inline]
+// `clamp` keeps NaN, which the unchecked conversion below must never see.
+#[allow(clippy::manual_clamp)]
 pub fn to_u8(v: f32) -> u8 {
-    (v.clamp(0.0, 1.0) * 255.0).round() as u8
+    // The whole part plus one where the fraction is at least a half: C's
+    // round of a non-negative y, with `y - t` exact (checked against
+    // `f32::round` for every f32 in [0, 1]). Written so that it
+    // vectorises: with `round` and saturating casts, 1080p's conversion
+    // took 9.4 ms on 2 cores. `max` then `min` map NaN to 0.
+    let y = v.max(0.0).min(1.0) * 255.0;
+    // SAFETY: y is finite and in [0, 255], which i32 holds.
+    let t: i32 = unsafe { y.to_int_unchecked() };
+    (t + i32::from(y - t as f32 >= 0.5)) as u8
 }
 
 impl Framebuffer {
@@ -28,15 +39,16 @@ impl Framebuffer {
     /// core: at 1080p a serial pass took 17 ms, longer than PNG's encode.
     pub fn to_rgb8(&self) -> RgbImage {
         use rayon::prelude::*;
-        let mut bytes = vec![0u8; self.pixels.len() * 3];
+        // Channel by channel over flat slices: a one-to-one map that
+        // vectorises, where a loop over [f32; 3] pixels did not.
+        let values: &[f32] = bytemuck::cast_slice(&self.pixels);
+        let mut bytes = vec![0u8; values.len()];
         bytes
             .par_chunks_mut(3 * 4096)
-            .zip(self.pixels.par_chunks(4096))
-            .for_each(|(out, pixels)| {
-                for (o, p) in out.chunks_exact_mut(3).zip(pixels) {
-                    o[0] = to_u8(p[0]);
-                    o[1] = to_u8(p[1]);
-                    o[2] = to_u8(p[2]);
+            .zip(values.par_chunks(3 * 4096))
+            .for_each(|(out, values)| {
+                for (o, &v) in out.iter_mut().zip(values) {
+                    *o = to_u8(v);
                 }
             });
         RgbImage::from_raw(self.width, self.height, bytes)
@@ -447,6 +459,25 @@ mod tests {
         assert_eq!(to_u8(-1.0), 0);
         assert_eq!(to_u8(2.0), 255);
         assert_eq!(to_u8(0.3), 77); // 76.5 -> 77
+        assert_eq!(to_u8(f32::NAN), 0);
+    }
+
+    /// Equal to C's round of `v * 255` (clamped) at and around every
+    /// rounding edge: the f32s within 64 ulps of (n + 0.5) / 255, and of
+    /// n + 0.5 after the scaling, for every level n.
+    #[test]
+    fn to_u8_is_c_round_at_every_edge() {
+        let c_round = |v: f32| (v.clamp(0.0, 1.0) * 255.0).round() as u8;
+        for n in 0..255u32 {
+            for centre in [(n as f32 + 0.5) / 255.0, n as f32 + 0.5] {
+                let bits = centre.to_bits();
+                for b in bits - 64..=bits + 64 {
+                    let v = f32::from_bits(b);
+                    assert_eq!(to_u8(v), c_round(v), "{v:e}");
+                    assert_eq!(to_u8(v / 255.0), c_round(v / 255.0), "{v:e} / 255");
+                }
+            }
+        }
     }
 
     /// EXR keeps every float bit, values beyond [0, 1] included; PNG keeps
