@@ -109,6 +109,14 @@ impl Image {
         }
     }
 
+    /// The float image, without a copy where it is one.
+    pub fn into_float(self) -> Framebuffer {
+        match self {
+            Image::Float(fb) => fb,
+            image => image.to_float().into_owned(),
+        }
+    }
+
     /// The 8-bit image (`Framebuffer::to_rgb8` of a float one).
     pub fn to_rgb8(&self) -> std::borrow::Cow<'_, RgbImage> {
         match self {

@@ -33,9 +33,6 @@ impl RenderOutput {
 
     /// The float image, without a copy where it is one.
     pub fn into_framebuffer(self) -> Framebuffer {
-        match self.image {
-            Image::Float(fb) => fb,
-            image => image.to_float().into_owned(),
-        }
+        self.image.into_float()
     }
 }

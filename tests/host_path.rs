@@ -10,6 +10,8 @@
 //! - Frames written by `--frames` (rendered while the last is encoded)
 //!   equal single renders at each frame's time.
 //! - A GPU animation whose triangles do not move uploads them once.
+//! - On the GPU, 8-bit pixels are packed on the device: 4 bytes a pixel
+//!   read back, the same pixels as the float render converted.
 
 mod common;
 
@@ -21,7 +23,7 @@ use glint::encode::EncodeOptions;
 use glint::framebuffer::{Image, ImageFile};
 use glint::render::{Backend, PixelFormat, RenderOptions, Renderer};
 use glint::scene::Scene;
-use glint::timing::UPLOADED_BYTES;
+use glint::timing::{READBACK_BYTES, UPLOADED_BYTES};
 
 const W: u32 = 96;
 const H: u32 = 72;
@@ -212,5 +214,43 @@ fn an_animation_uploads_its_static_triangles_once() {
             u > 0 && u < triangles,
             "frame {i} uploaded {u} bytes (all frames: {uploaded:?}); the triangles alone are about {triangles}"
         );
+    }
+}
+
+/// On the GPU an 8-bit render is packed on the device: the host reads 4
+/// bytes a pixel (16 for floats), and crops and parts are packed alike.
+#[test]
+fn eight_bit_gpu_renders_read_back_four_bytes_a_pixel() {
+    if gpu().is_none() {
+        return;
+    }
+    let scene =
+        glint::scene::read_scene(&repo_path("scenes/effects/soft_shadows.scene")).expect("parses");
+    let float = renderer(W, H, Backend::Gpu, PixelFormat::Float);
+    let bytes = renderer(W, H, Backend::Gpu, PixelFormat::Rgb8);
+    let pixels = u64::from(W * H);
+    let read = |out: &glint::render::RenderOutput| out.timings.counted(READBACK_BYTES);
+    let a = float.render(&scene, &|_, _| {}).expect("renders");
+    let b = bytes.render(&scene, &|_, _| {}).expect("renders");
+    assert_eq!(read(&a), 16 * pixels);
+    assert_eq!(read(&b), 4 * pixels);
+    assert_eq!(*b.image.to_rgb8(), *a.image.to_rgb8());
+    let crop = glint::region::Crop::parse("13,7,61,50").expect("crop");
+    let a = float
+        .render_crop(&scene, crop, &|_, _| {})
+        .expect("renders");
+    let b = bytes
+        .render_crop(&scene, crop, &|_, _| {})
+        .expect("renders");
+    assert_eq!(read(&b), 4 * 48 * 43);
+    assert_eq!(*b.image.to_rgb8(), *a.image.to_rgb8(), "crop");
+    for index in 0..3 {
+        let (a, _) = float
+            .render_part(&scene, index, 3, &|_, _| {})
+            .expect("renders");
+        let (b, _) = bytes
+            .render_part(&scene, index, 3, &|_, _| {})
+            .expect("renders");
+        assert_eq!(*b.image.to_rgb8(), *a.image.to_rgb8(), "part {index}");
     }
 }

@@ -23,6 +23,7 @@ pub mod present;
 mod render;
 mod rewrite;
 pub mod shader;
+mod small_pipeline;
 mod surface;
 
 pub use bindings::BINDINGS;

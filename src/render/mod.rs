@@ -8,6 +8,7 @@ use crate::bvh::Bvh;
 use crate::camera::Camera;
 use crate::cpu::{self, CpuOptions, Precision};
 use crate::features::Features;
+use crate::framebuffer::Image;
 use crate::gpu::{Context, ContextOptions, GpuRenderOptions, GpuRenderer};
 use crate::layout::GpuScene;
 use crate::memory::{self, MemoryNeed};
@@ -483,7 +484,7 @@ impl Renderer {
         progress: &(dyn Fn(u64, u64) + Sync),
     ) -> Result<RenderOutput, Error> {
         let mut need = MemoryNeed::image(p.camera.width, p.camera.height);
-        let framebuffer = match (&self.engine, packed) {
+        let image = match (&self.engine, packed) {
             (Engine::Gpu { renderer, ctx }, Packed::Gpu(packed)) => {
                 let host_device = ctx.info().profile.host_memory;
                 let texels = crate::gpu::tile_texels(
@@ -493,26 +494,26 @@ impl Renderer {
                 );
                 need.add_gpu(packed, texels, host_device);
                 need.check(memory::available())?;
-                let options = self.gpu_options(p);
-                let bg = self.options.background;
-                let rendered = match region {
-                    Region::All => renderer.render(packed, &p.camera, bg, &options, progress),
-                    Region::Blocks(b) => {
-                        renderer.render_rects(packed, &p.camera, bg, &options, &b.rects(), progress)
-                    }
-                    Region::Crop(c) => renderer.render_rects(
-                        packed,
-                        &p.camera,
-                        bg,
-                        &options,
-                        &[c.rect()],
-                        progress,
-                    ),
-                    Region::Span(s) => {
-                        renderer.render_rects(packed, &p.camera, bg, &options, &s.rects(), progress)
-                    }
+                let options = GpuRenderOptions {
+                    pack_rgb8: pixels == PixelFormat::Rgb8,
+                    ..self.gpu_options(p)
                 };
-                let (framebuffer, gpu_timings) = match rendered {
+                let bg = self.options.background;
+                let rects = match region {
+                    Region::All => None,
+                    Region::Blocks(b) => Some(b.rects()),
+                    Region::Crop(c) => Some(vec![c.rect()]),
+                    Region::Span(s) => Some(s.rects()),
+                };
+                let rendered = renderer.render_image(
+                    packed,
+                    &p.camera,
+                    bg,
+                    &options,
+                    rects.as_deref(),
+                    progress,
+                );
+                let (image, gpu_timings) = match rendered {
                     Err(crate::gpu::GpuError::Cancelled) => return Err(Error::Cancelled),
                     r => r?,
                 };
@@ -523,7 +524,7 @@ impl Renderer {
                 if from_disk > 0 {
                     timings.count("pipelines from disk", from_disk);
                 }
-                framebuffer
+                image
             }
             (Engine::Cpu(precision), Packed::Cpu(geometry)) => {
                 need.check(memory::available())?;
@@ -549,16 +550,15 @@ impl Renderer {
                 if let Some(t) = work.cpu_time {
                     timings.count(crate::timing::CPU_TIME_NS, t.as_nanos() as u64);
                 }
-                framebuffer
+                match pixels {
+                    PixelFormat::Float => Image::Float(framebuffer),
+                    PixelFormat::Rgb8 => {
+                        Image::Rgb8(timings.time("to 8-bit", || framebuffer.to_rgb8()))
+                    }
+                }
             }
             // `pack` makes each engine its own.
             _ => unreachable!("a scene packed for another backend"),
-        };
-        let image = match pixels {
-            PixelFormat::Float => crate::framebuffer::Image::Float(framebuffer),
-            PixelFormat::Rgb8 => {
-                crate::framebuffer::Image::Rgb8(timings.time("to 8-bit", || framebuffer.to_rgb8()))
-            }
         };
         Ok(RenderOutput {
             image,

@@ -10,7 +10,8 @@ use gpu_allocator::MemoryLocation;
 use crate::gpu::buffer::Buffer;
 use crate::gpu::commands::{command_and_fence, memory_barrier, submit_and_wait};
 use crate::gpu::context::{Context, Shared};
-use crate::gpu::error::{GpuError, ShaderError, VkResultExt};
+use crate::gpu::error::GpuError;
+use crate::gpu::small_pipeline::SmallPipeline;
 use crate::layout::{GpuResolve, WORKGROUP_SIZE};
 
 /// The window's work (a resolve, a copy) is milliseconds; a device that
@@ -39,11 +40,7 @@ struct Images {
 
 pub struct DeviceMean {
     shared: Arc<Shared>,
-    set_layout: vk::DescriptorSetLayout,
-    layout: vk::PipelineLayout,
-    pipeline: vk::Pipeline,
-    pool: vk::DescriptorPool,
-    set: vk::DescriptorSet,
+    resolve: SmallPipeline,
     commands: vk::CommandPool,
     command: vk::CommandBuffer,
     fence: vk::Fence,
@@ -52,40 +49,12 @@ pub struct DeviceMean {
     bgra: bool,
 }
 
-/// `resolve.wgsl` as SPIR-V 1.0, without contraction (as the trace
-/// shader: a fused multiply-add would move `level`'s rounding edges).
-fn resolve_spirv() -> Result<Vec<u32>, ShaderError> {
-    use naga::back::spv;
-    let fail = |message: String| ShaderError {
-        what: "resolve".into(),
-        message,
-    };
-    let module = naga::front::wgsl::parse_str(RESOLVE_WGSL)
-        .map_err(|e| fail(e.emit_to_string(RESOLVE_WGSL)))?;
-    let info = naga::valid::Validator::new(
-        naga::valid::ValidationFlags::all(),
-        naga::valid::Capabilities::empty(),
-    )
-    .validate(&module)
-    .map_err(|e| fail(e.emit_to_string(RESOLVE_WGSL)))?;
-    let options = spv::Options {
-        lang_version: (1, 0),
-        flags: spv::WriterFlags::empty(),
-        fake_missing_bindings: true,
-        ..spv::Options::default()
-    };
-    let words = spv::write_vec(&module, &info, &options, None)
-        .map_err(|e| fail(format!("SPIR-V generation: {e}")))?;
-    Ok(crate::gpu::rewrite::no_contraction(&words))
-}
-
 impl DeviceMean {
     /// The resolve pipeline on `ctx`'s device; `bgra` is the swapchain's
     /// byte order.
     pub fn new(ctx: &Context, bgra: bool) -> Result<DeviceMean, GpuError> {
         let shared = ctx.shared.clone();
-        let device = &shared.device;
-        let words = resolve_spirv()?;
+        let resolve = SmallPipeline::new(&shared, "resolve", RESOLVE_WGSL, c"resolve", 4, 1)?;
         let params = Buffer::new(
             &shared,
             "resolve parameters",
@@ -93,84 +62,17 @@ impl DeviceMean {
             vk::BufferUsageFlags::STORAGE_BUFFER,
             MemoryLocation::CpuToGpu,
         )?;
-        let bindings: Vec<_> = (0..4)
-            .map(|b| {
-                vk::DescriptorSetLayoutBinding::default()
-                    .binding(b)
-                    .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
-                    .descriptor_count(1)
-                    .stage_flags(vk::ShaderStageFlags::COMPUTE)
-            })
-            .collect();
-        // SAFETY: valid create infos on a live device; each object is
-        // destroyed in `drop`, after the device has finished with it.
-        unsafe {
-            let set_layout = device
-                .create_descriptor_set_layout(
-                    &vk::DescriptorSetLayoutCreateInfo::default().bindings(&bindings),
-                    None,
-                )
-                .call("vkCreateDescriptorSetLayout")?;
-            let layouts = [set_layout];
-            let layout = device
-                .create_pipeline_layout(
-                    &vk::PipelineLayoutCreateInfo::default().set_layouts(&layouts),
-                    None,
-                )
-                .call("vkCreatePipelineLayout")?;
-            let module = device
-                .create_shader_module(&vk::ShaderModuleCreateInfo::default().code(&words), None)
-                .call("vkCreateShaderModule")?;
-            let stage = vk::PipelineShaderStageCreateInfo::default()
-                .stage(vk::ShaderStageFlags::COMPUTE)
-                .module(module)
-                .name(c"resolve");
-            let created = device.create_compute_pipelines(
-                vk::PipelineCache::null(),
-                &[vk::ComputePipelineCreateInfo::default()
-                    .stage(stage)
-                    .layout(layout)],
-                None,
-            );
-            device.destroy_shader_module(module, None);
-            let pipeline = created
-                .map_err(|(_, r)| r)
-                .call("vkCreateComputePipelines")?[0];
-            let sizes = [vk::DescriptorPoolSize {
-                ty: vk::DescriptorType::STORAGE_BUFFER,
-                descriptor_count: 4,
-            }];
-            let pool = device
-                .create_descriptor_pool(
-                    &vk::DescriptorPoolCreateInfo::default()
-                        .max_sets(1)
-                        .pool_sizes(&sizes),
-                    None,
-                )
-                .call("vkCreateDescriptorPool")?;
-            let set = device
-                .allocate_descriptor_sets(
-                    &vk::DescriptorSetAllocateInfo::default()
-                        .descriptor_pool(pool)
-                        .set_layouts(&layouts),
-                )
-                .call("vkAllocateDescriptorSets")?[0];
-            let (commands, command, fence) = command_and_fence(&shared)?;
-            Ok(DeviceMean {
-                shared,
-                set_layout,
-                layout,
-                pipeline,
-                pool,
-                set,
-                commands,
-                command,
-                fence,
-                params,
-                images: None,
-                bgra,
-            })
-        }
+        let (commands, command, fence) = command_and_fence(&shared)?;
+        Ok(DeviceMean {
+            shared,
+            resolve,
+            commands,
+            command,
+            fence,
+            params,
+            images: None,
+            bgra,
+        })
     }
 
     /// Starts a view of `width` x `height`: buffers of its size, the pass
@@ -192,28 +94,13 @@ impl DeviceMean {
                 sums: make("the window's sums", texels * 16)?,
                 shown: make("the window's pixels", texels * 4)?,
             };
-            let infos: Vec<[vk::DescriptorBufferInfo; 1]> =
+            let bound: Vec<(vk::Buffer, u64)> =
                 [&images.pass, &images.sums, &images.shown, &self.params]
                     .iter()
-                    .map(|b| {
-                        [vk::DescriptorBufferInfo::default()
-                            .buffer(b.raw)
-                            .range(b.size)]
-                    })
+                    .map(|b| (b.raw, b.size))
                     .collect();
-            let writes: Vec<_> = infos
-                .iter()
-                .enumerate()
-                .map(|(i, info)| {
-                    vk::WriteDescriptorSet::default()
-                        .dst_set(self.set)
-                        .dst_binding(i as u32)
-                        .descriptor_type(vk::DescriptorType::STORAGE_BUFFER)
-                        .buffer_info(info)
-                })
-                .collect();
-            // SAFETY: the set is not in use (every submit was waited for).
-            unsafe { self.shared.device.update_descriptor_sets(&writes, &[]) };
+            // The set is not in use: every submit was waited for.
+            self.resolve.bind(0, &bound);
             self.images = Some(images);
         }
         let images = self.images.as_ref().expect("just made");
@@ -243,8 +130,7 @@ impl DeviceMean {
         };
         self.params.write(bytemuck::bytes_of(&params));
         let groups = images.size.map(|v| v.div_ceil(WORKGROUP_SIZE));
-        let (device, pipeline, layout, set) =
-            (&self.shared.device, self.pipeline, self.layout, self.set);
+        let (device, resolve) = (&self.shared.device, &self.resolve);
         self.submit(|cmd| {
             // SAFETY: recording into the mean's own command buffer; the
             // barrier orders the renderer's tile copies before the shader.
@@ -261,16 +147,7 @@ impl DeviceMean {
                         vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE,
                     ),
                 );
-                device.cmd_bind_pipeline(cmd, vk::PipelineBindPoint::COMPUTE, pipeline);
-                device.cmd_bind_descriptor_sets(
-                    cmd,
-                    vk::PipelineBindPoint::COMPUTE,
-                    layout,
-                    0,
-                    &[set],
-                    &[],
-                );
-                device.cmd_dispatch(cmd, groups[0], groups[1], 1);
+                resolve.dispatch(cmd, 0, groups);
             }
         })
     }
@@ -368,10 +245,6 @@ impl Drop for DeviceMean {
         unsafe {
             device.destroy_fence(self.fence, None);
             device.destroy_command_pool(self.commands, None);
-            device.destroy_descriptor_pool(self.pool, None);
-            device.destroy_pipeline(self.pipeline, None);
-            device.destroy_pipeline_layout(self.layout, None);
-            device.destroy_descriptor_set_layout(self.set_layout, None);
         }
     }
 }

@@ -13,6 +13,8 @@ use crate::scene::Effects;
 pub(super) const SLOTS: usize = 2;
 /// Output texels are `vec4<f32>`.
 pub(super) const TEXEL_BYTES: u64 = 16;
+/// Packed 8-bit texels (`GpuRenderOptions::pack_rgb8`) are one `u32`.
+pub(super) const PACKED_BYTES: u64 = 4;
 /// Binding indices (the shader's header lists them).
 pub(super) const B_FRAME: usize = 0;
 pub(super) const B_TILE: usize = 1;
@@ -56,6 +58,10 @@ pub struct GpuRenderOptions {
     pub uniform_lists: bool,
     /// A tile's first pass without pixel state (`DriverProfile::one_pass_first`).
     pub one_pass_first: bool,
+    /// Colour renders: pack each tile's texels into 8-bit pixels on the
+    /// device (`shaders/pack.wgsl`), so the host reads 4 bytes a pixel,
+    /// and hand back `Image::Rgb8`.
+    pub pack_rgb8: bool,
 }
 
 impl Default for GpuRenderOptions {
@@ -75,6 +81,7 @@ impl Default for GpuRenderOptions {
             storage_limit: None,
             uniform_lists: true,
             one_pass_first: true,
+            pack_rgb8: false,
         }
     }
 }
@@ -124,12 +131,12 @@ pub(super) struct TileWork {
 
 /// Copies a tile's texels (row-major, `rect.size[0]` wide) into their place
 /// in an image `width` pixels wide, converting each with `f`.
-pub(super) fn place_tile<T>(
+pub(super) fn place_tile<S, T>(
     rect: TileRect,
-    texels: &[[f32; 4]],
+    texels: &[S],
     width: usize,
     image: &mut [T],
-    f: impl Fn(&[f32; 4]) -> T,
+    f: impl Fn(&S) -> T,
 ) {
     let [x0, y0] = rect.origin.map(|v| v as usize);
     let w = rect.size[0] as usize;

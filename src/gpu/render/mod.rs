@@ -42,7 +42,7 @@ use super::error::GpuError;
 use super::pipeline::{Kernel, TracePipeline};
 use super::present::FrameTarget;
 use crate::camera::Camera;
-use crate::framebuffer::Framebuffer;
+use crate::framebuffer::{Framebuffer, Image};
 use crate::layout::GpuScene;
 use crate::probe::{PathRecord, ProbeImage};
 use crate::timing::Timings;
@@ -107,7 +107,7 @@ impl GpuRenderer {
         &self,
         work: Work,
         progress: &(dyn Fn(u64, u64) + Sync),
-        sink: &mut dyn FnMut(TileRect, &[[f32; 4]]),
+        sink: &mut dyn FnMut(TileRect, &[u8]),
     ) -> Result<Timings, GpuError> {
         let mut guard = self.resources.lock().unwrap_or_else(|e| e.into_inner());
         if guard.is_none() {
@@ -193,23 +193,31 @@ impl GpuRenderer {
         options: &GpuRenderOptions,
         progress: &(dyn Fn(u64, u64) + Sync),
     ) -> Result<(Framebuffer, Timings), GpuError> {
-        let job = Job::Image(Kernel::Render);
-        self.render_job(scene, camera, background, options, job, &[], progress)
+        let options = &GpuRenderOptions {
+            pack_rgb8: false,
+            ..*options
+        };
+        let (image, timings) =
+            self.render_image(scene, camera, background, options, None, progress)?;
+        Ok((image.into_float(), timings))
     }
 
-    /// Renders only the rectangles `rects` (x, y, width, height) of the
-    /// image, each as its own tile (split where larger than one); the rest
-    /// of the framebuffer is left 0. For progressive renders that spend
-    /// passes where the noise is.
-    pub fn render_rects(
+    /// Renders `scene` (only the rectangles `rects` (x, y, width, height)
+    /// where given, the rest 0) into float values, or into 8-bit pixels
+    /// packed on the device where `options.pack_rgb8` asks.
+    pub fn render_image(
         &self,
         scene: &GpuScene,
         camera: &Camera,
         background: [f32; 3],
         options: &GpuRenderOptions,
-        rects: &[[u32; 4]],
+        rects: Option<&[[u32; 4]]>,
         progress: &(dyn Fn(u64, u64) + Sync),
-    ) -> Result<(Framebuffer, Timings), GpuError> {
+    ) -> Result<(Image, Timings), GpuError> {
+        let Some(rects) = rects else {
+            let job = Job::Image(Kernel::Render);
+            return self.render_job(scene, camera, background, options, job, &[], progress);
+        };
         let edge = tile_edge(options.tile_size);
         let mut parts = Vec::new();
         for &[x, y, w, h] in rects {
@@ -233,6 +241,28 @@ impl GpuRenderer {
         )
     }
 
+    /// Renders only the rectangles `rects` (x, y, width, height) of the
+    /// image, each as its own tile (split where larger than one); the rest
+    /// of the framebuffer is left 0. For progressive renders that spend
+    /// passes where the noise is.
+    pub fn render_rects(
+        &self,
+        scene: &GpuScene,
+        camera: &Camera,
+        background: [f32; 3],
+        options: &GpuRenderOptions,
+        rects: &[[u32; 4]],
+        progress: &(dyn Fn(u64, u64) + Sync),
+    ) -> Result<(Framebuffer, Timings), GpuError> {
+        let options = &GpuRenderOptions {
+            pack_rgb8: false,
+            ..*options
+        };
+        let (image, timings) =
+            self.render_image(scene, camera, background, options, Some(rects), progress)?;
+        Ok((image.into_float(), timings))
+    }
+
     /// The colour image of a `Kernel::Render` job (`rects` for `Job::Rects`).
     #[allow(clippy::too_many_arguments)]
     fn render_job(
@@ -244,32 +274,48 @@ impl GpuRenderer {
         job: Job,
         rects: &[TileRect],
         progress: &(dyn Fn(u64, u64) + Sync),
-    ) -> Result<(Framebuffer, Timings), GpuError> {
+    ) -> Result<(Image, Timings), GpuError> {
         let width = camera.width as usize;
-        let mut pixels = vec![[0.0f32; 3]; width * camera.height as usize];
-        let timings = self.run(
-            Work {
-                scene,
-                camera,
-                background,
-                options,
-                job,
-                rects,
-                start_resumable: false,
-                cancel: None,
-                frame: None,
-            },
-            progress,
-            &mut |rect, texels| {
-                place_tile(rect, texels, width, &mut pixels, |t| [t[0], t[1], t[2]])
-            },
-        )?;
+        let count = width * camera.height as usize;
+        let work = Work {
+            scene,
+            camera,
+            background,
+            options,
+            job,
+            rects,
+            start_resumable: false,
+            cancel: None,
+            frame: None,
+        };
+        if options.pack_rgb8 {
+            // R, G, B, 255 per texel (`shaders/pack.wgsl`).
+            let mut bytes = vec![0u8; count * 3];
+            let pixels: &mut [[u8; 3]] = bytemuck::cast_slice_mut(&mut bytes);
+            let timings = self.run(work, progress, &mut |rect, read| {
+                let texels: &[[u8; 4]] = bytemuck::cast_slice(read);
+                place_tile(rect, texels, width, pixels, |t| [t[0], t[1], t[2]])
+            })?;
+            let image = image::RgbImage::from_raw(camera.width, camera.height, bytes)
+                .expect("pixel count matches width * height");
+            return Ok((Image::Rgb8(image), timings));
+        }
+        let mut pixels = vec![[0.0f32; 3]; count];
+        let timings = self.run(work, progress, &mut |rect, bytes| {
+            place_tile(
+                rect,
+                bytemuck::cast_slice(bytes),
+                width,
+                &mut pixels,
+                |t: &[f32; 4]| [t[0], t[1], t[2]],
+            )
+        })?;
         let fb = Framebuffer {
             width: camera.width,
             height: camera.height,
             pixels,
         };
-        Ok((fb, timings))
+        Ok((Image::Float(fb), timings))
     }
 
     /// Each pixel's primary hit and shadow verdicts (the shader's `probe_tile`).
@@ -295,7 +341,9 @@ impl GpuRenderer {
                 frame: None,
             },
             &|_, _| {},
-            &mut |rect, texels| place_tile(rect, texels, width, &mut image, |t| *t),
+            &mut |rect, bytes| {
+                place_tile(rect, bytemuck::cast_slice(bytes), width, &mut image, |t| *t)
+            },
         )?;
         let mut probe = ProbeImage::from_texels(camera.width, camera.height, &image);
         for p in &mut probe.pixels {
@@ -328,7 +376,7 @@ impl GpuRenderer {
                 frame: None,
             },
             &|_, _| {},
-            &mut |_, texels| record = texels.to_vec(),
+            &mut |_, bytes| record = bytemuck::cast_slice(bytes).to_vec(),
         )?;
         let mut path = PathRecord::from_texels(&record);
         path.prim = scene.scene_prim(path.prim);

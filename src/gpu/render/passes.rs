@@ -14,7 +14,7 @@ use ash::vk;
 
 use super::job::{
     tile_edge, tile_texels, tiles, GpuRenderOptions, Job, TileRect, TileWork, BUDGET_BACKOFF,
-    B_FRAME, B_OUTPUT, B_STATE, PATH_MAX_LIGHTS, RESUMABLE_REDOS, SLOTS, TEXEL_BYTES,
+    B_FRAME, B_OUTPUT, B_STATE, PACKED_BYTES, PATH_MAX_LIGHTS, RESUMABLE_REDOS, SLOTS, TEXEL_BYTES,
 };
 use super::plan::{capped, check_limits, key, scene_uploads, upload};
 use super::resources::{scene_buffer, Gpu, Resources, Slot};
@@ -24,6 +24,11 @@ use crate::gpu::commands::memory_barrier;
 use crate::gpu::error::{GpuError, VkResultExt};
 use crate::gpu::pipeline::{Kernel, PipelineKey};
 use crate::gpu::present::FrameTarget;
+use crate::gpu::small_pipeline::SmallPipeline;
+
+/// `shaders/pack.wgsl`'s workgroup size: 2048^2 texels, the largest tile,
+/// stay within 65,535 workgroups.
+const PACK_GROUP: u64 = 256;
 use crate::layout::{
     uniform_copy, GpuPixelState, GpuScene, GpuStatus, GpuTile, ADDRESS_LISTS, PATH_HEADER,
     PATH_PER_LIGHT, UNIFORM_FIRST, UNIFORM_LISTS, WORKGROUP_SIZE,
@@ -58,7 +63,7 @@ impl Gpu<'_> {
         work: &Work,
         res: &mut Resources,
         progress: &(dyn Fn(u64, u64) + Sync),
-        sink: &mut dyn FnMut(TileRect, &[[f32; 4]]),
+        sink: &mut dyn FnMut(TileRect, &[u8]),
     ) -> Result<(Timings, Option<bool>), GpuError> {
         let Work {
             scene,
@@ -102,6 +107,9 @@ impl Gpu<'_> {
             _ => std::mem::size_of::<GpuPixelState>() as u64,
         };
         let out_bytes = out_texels * TEXEL_BYTES;
+        // 8-bit pixels packed on the device, for colour jobs that ask.
+        let pack = options.pack_rgb8 && matches!(job, Job::Image(Kernel::Render) | Job::Rects);
+        let texel_bytes = if pack { PACKED_BYTES } else { TEXEL_BYTES };
         let mut frame = scene.frame(camera, background, &options.effects, &options.features);
         let mut uploads = vec![upload(
             B_FRAME,
@@ -177,6 +185,9 @@ impl Gpu<'_> {
                 state_bytes,
             )?;
         }
+        if pack {
+            self.bind_pack(res, out_texels)?;
+        }
         timings.add("upload", upload_start.elapsed());
         timings.count(UPLOADED_BYTES, uploaded);
 
@@ -218,7 +229,15 @@ impl Gpu<'_> {
                     resumable: start_resumable || needed_passes,
                 };
                 let p = pipeline_for(&work, &mut timings)?;
-                self.submit_pass(&mut res.slots[s], p, (lists, job), work, out_texels, target)?;
+                let packing = res.pack.as_ref().filter(|_| pack).map(|p| (p, s));
+                self.submit_pass(
+                    &mut res.slots[s],
+                    p,
+                    (lists, job),
+                    work,
+                    out_texels,
+                    (target, packing),
+                )?;
                 passes += 1;
                 in_flight.push_back((s, work));
             }
@@ -277,14 +296,14 @@ impl Gpu<'_> {
                 progress(done_pixels, total_pixels);
             } else {
                 let start = Instant::now();
-                let texels: &[[f32; 4]] = bytemuck::cast_slice(slot.readback.get().mapped());
                 let n = match job {
-                    Job::Image(_) | Job::Rects => (work.rect.size[0] * work.rect.size[1]) as usize,
-                    Job::Pixel(_) => out_texels as usize,
+                    Job::Image(_) | Job::Rects => u64::from(work.rect.size[0] * work.rect.size[1]),
+                    Job::Pixel(_) => out_texels,
                 };
-                sink(work.rect, &texels[..n]);
+                let bytes = (n * texel_bytes) as usize;
+                sink(work.rect, &slot.readback.get().mapped()[..bytes]);
                 readback += start.elapsed();
-                readback_bytes += n as u64 * TEXEL_BYTES;
+                readback_bytes += bytes as u64;
                 rays[0] += work.rays[0] + u64::from(status.closest_rays);
                 rays[1] += work.rays[1] + u64::from(status.shadow_rays);
                 done_pixels += u64::from(work.left);
@@ -293,7 +312,15 @@ impl Gpu<'_> {
                 continue;
             }
             let p = pipeline_for(&work, &mut timings)?;
-            self.submit_pass(&mut res.slots[s], p, (lists, job), work, out_texels, target)?;
+            let packing = res.pack.as_ref().filter(|_| pack).map(|p| (p, s));
+            self.submit_pass(
+                &mut res.slots[s],
+                p,
+                (lists, job),
+                work,
+                out_texels,
+                (target, packing),
+            )?;
             passes += 1;
             in_flight.push_back((s, work));
         }
@@ -373,7 +400,7 @@ impl Gpu<'_> {
         (lists, job): (Lists, Job),
         work: TileWork,
         out_texels: u64,
-        target: Option<FrameTarget>,
+        (target, pack): (Option<FrameTarget>, Option<(&SmallPipeline, usize)>),
     ) -> Result<(), GpuError> {
         let shared = &self.shared;
         let device = &shared.device;
@@ -476,18 +503,44 @@ impl Gpu<'_> {
                     vk::AccessFlags::SHADER_WRITE,
                 ),
                 (
-                    vk::PipelineStageFlags::TRANSFER | vk::PipelineStageFlags::HOST,
-                    vk::AccessFlags::TRANSFER_READ | vk::AccessFlags::HOST_READ,
+                    vk::PipelineStageFlags::COMPUTE_SHADER
+                        | vk::PipelineStageFlags::TRANSFER
+                        | vk::PipelineStageFlags::HOST,
+                    vk::AccessFlags::SHADER_READ
+                        | vk::AccessFlags::TRANSFER_READ
+                        | vk::AccessFlags::HOST_READ,
                 ),
             );
+            let (read_from, size) = match pack {
+                Some((pipeline, set)) => {
+                    // The tile's texels as 8-bit pixels: a quarter of the
+                    // bytes cross to the host.
+                    let groups = texels.div_ceil(PACK_GROUP).min(u64::from(u32::MAX)) as u32;
+                    pipeline.dispatch(slot.command, set, [groups, 1]);
+                    memory_barrier(
+                        device,
+                        slot.command,
+                        (
+                            vk::PipelineStageFlags::COMPUTE_SHADER,
+                            vk::AccessFlags::SHADER_WRITE,
+                        ),
+                        (
+                            vk::PipelineStageFlags::TRANSFER,
+                            vk::AccessFlags::TRANSFER_READ,
+                        ),
+                    );
+                    (slot.packed.get().raw, texels * PACKED_BYTES)
+                }
+                None => (slot.output.get().raw, bytes),
+            };
             device.cmd_copy_buffer(
                 slot.command,
-                slot.output.get().raw,
+                read_from,
                 slot.readback.get().raw,
                 &[vk::BufferCopy {
                     src_offset: 0,
                     dst_offset: 0,
-                    size: bytes,
+                    size,
                 }],
             );
             if let Some(target) = target {

@@ -8,7 +8,12 @@ use std::sync::Arc;
 use ash::vk;
 use gpu_allocator::MemoryLocation;
 
-use super::job::{B_FRAME, B_MATERIALS, B_OUTPUT, B_SKIPS, B_STATE, B_STATUS, B_TILE, SLOTS};
+use super::job::{
+    B_FRAME, B_MATERIALS, B_OUTPUT, B_SKIPS, B_STATE, B_STATUS, B_TILE, PACKED_BYTES, SLOTS,
+    TEXEL_BYTES,
+};
+
+pub const PACK_WGSL: &str = include_str!("../../../shaders/pack.wgsl");
 use super::plan::{ListForms, Split, Upload};
 use crate::gpu::bindings::{Lists, BINDINGS};
 use crate::gpu::buffer::Buffer;
@@ -16,6 +21,7 @@ use crate::gpu::commands::{command_pool, memory_barrier, submit_and_wait};
 use crate::gpu::context::Shared;
 use crate::gpu::error::{GpuError, VkResultExt};
 use crate::gpu::pipeline::TracePipeline;
+use crate::gpu::small_pipeline::SmallPipeline;
 use crate::layout::{GpuStatus, GpuTile, ADDRESS_LISTS, SPLIT_LISTS, UNIFORM_FIRST};
 
 /// The device a render runs on: its shared state and the trace pipeline.
@@ -126,6 +132,8 @@ pub(super) struct Slot {
     pub(super) tile: Buffer,
     pub(super) status: Buffer,
     pub(super) output: Reusable,
+    /// The output's texels as 8-bit pixels (`GpuRenderOptions::pack_rgb8`).
+    pub(super) packed: Reusable,
     pub(super) readback: Reusable,
     pub(super) state: Reusable,
     pub(super) command: vk::CommandBuffer,
@@ -146,6 +154,9 @@ pub(super) struct Resources {
     pub(super) staging: Reusable,
     pub(super) upload_command: vk::CommandBuffer,
     pub(super) upload_fence: vk::Fence,
+    /// `shaders/pack.wgsl`, one set per slot; built when a render first
+    /// asks for 8-bit pixels.
+    pub(super) pack: Option<SmallPipeline>,
     /// Held for its drop: frees the command buffers, sets and fences.
     pub(super) _pools: Pools,
 }
@@ -239,6 +250,7 @@ impl Gpu<'_> {
             ),
             upload_command,
             upload_fence,
+            pack: None,
             _pools: pools,
         })
     }
@@ -330,6 +342,36 @@ impl Gpu<'_> {
         Ok(uploaded)
     }
 
+    /// Points each slot's pack set at its output (`out_texels` texels) and
+    /// its 8-bit pixels, building the pack pipeline the first time.
+    pub(super) fn bind_pack(&self, res: &mut Resources, out_texels: u64) -> Result<(), GpuError> {
+        if res.pack.is_none() {
+            res.pack = Some(SmallPipeline::new(
+                self.shared,
+                "pack",
+                PACK_WGSL,
+                c"pack",
+                2,
+                SLOTS as u32,
+            )?);
+        }
+        let pack = res.pack.as_ref().expect("just built");
+        for (i, slot) in res.slots.iter_mut().enumerate() {
+            let packed = slot
+                .packed
+                .at_least(self.shared, out_texels * PACKED_BYTES)?;
+            let output = slot.output.get();
+            pack.bind(
+                i,
+                &[
+                    (output.raw, out_texels * TEXEL_BYTES),
+                    (packed.raw, out_texels * PACKED_BYTES),
+                ],
+            );
+        }
+        Ok(())
+    }
+
     pub(super) fn create_slot(&self, pools: &mut Pools, index: usize) -> Result<Slot, GpuError> {
         let shared = &self.shared;
         let tile = Buffer::new(
@@ -366,6 +408,11 @@ impl Gpu<'_> {
             status,
             output: Reusable::new(
                 &format!("tile output {index}"),
+                storage | vk::BufferUsageFlags::TRANSFER_SRC,
+                MemoryLocation::GpuOnly,
+            ),
+            packed: Reusable::new(
+                &format!("tile pixels {index}"),
                 storage | vk::BufferUsageFlags::TRANSFER_SRC,
                 MemoryLocation::GpuOnly,
             ),
