@@ -12,6 +12,7 @@
 //! - A GPU animation whose triangles do not move uploads them once.
 //! - On the GPU, 8-bit pixels are packed on the device: 4 bytes a pixel
 //!   read back, the same pixels as the float render converted.
+//! - A device failing mid-animation leaves the finished frames whole.
 
 mod common;
 
@@ -253,4 +254,99 @@ fn eight_bit_gpu_renders_read_back_four_bytes_a_pixel() {
             .expect("renders");
         assert_eq!(*b.image.to_rgb8(), *a.image.to_rgb8(), "part {index}");
     }
+}
+
+/// A device that fails mid-animation (`GLINT_FAULT`, a test-only fault at
+/// the Nth pass submission) ends the run with exit 1 and a message naming
+/// the Vulkan call; the frames finished before it are written whole and
+/// equal a clean run's, no partial file is left; a single render that
+/// fails writes nothing.
+#[test]
+fn a_device_failing_mid_animation_keeps_the_finished_frames() {
+    if gpu().is_none() {
+        return;
+    }
+    let dir = tmp();
+    let scene_path = dir.path().join("moving.scene");
+    std::fs::write(&scene_path, moving_lights()).expect("write scene");
+    let scene = scene_path.to_str().expect("utf-8");
+    let run = |out: &str, fault: Option<&str>| {
+        let mut c = std::process::Command::new(env!("CARGO_BIN_EXE_glint"));
+        c.args(["render", scene, out, "--backend", "gpu", "--width", "64"])
+            .args(["--height", "48", "--frames", "6", "--frame-format", "png"])
+            .current_dir(dir.path());
+        if let Some(f) = fault {
+            c.env("GLINT_FAULT", f);
+        }
+        c.output().expect("run glint")
+    };
+    let clean = run("clean", None);
+    assert!(
+        clean.status.success(),
+        "{}",
+        String::from_utf8_lossy(&clean.stderr)
+    );
+    for (fault, says) in [
+        ("lost@4", "vkQueueSubmit returned VK_ERROR_DEVICE_LOST"),
+        (
+            "oom@4",
+            "vkQueueSubmit failed: A device memory allocation has failed",
+        ),
+    ] {
+        let out = format!("faulty-{}", &fault[..fault.len() - 2]);
+        let o = run(&out, Some(fault));
+        let stderr = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{fault}: {stderr}");
+        assert!(stderr.contains(says), "{fault}: {stderr}");
+        let mut names: Vec<String> = std::fs::read_dir(dir.path().join(&out))
+            .expect("frame directory")
+            .filter_map(|e| e.ok())
+            .map(|e| e.file_name().to_string_lossy().into_owned())
+            .collect();
+        names.sort();
+        assert!(
+            names.iter().all(|n| !n.ends_with(".part")),
+            "{fault}: a partial file was left: {names:?}"
+        );
+        let want: Vec<String> = (0..names.len()).map(|i| format!("{i:03}.png")).collect();
+        assert_eq!(
+            names, want,
+            "{fault}: the frames written are not the first ones"
+        );
+        assert!(
+            (1..6).contains(&names.len()),
+            "{fault}: {} frames written before the fault at the 4th submission",
+            names.len()
+        );
+        for n in &names {
+            assert_eq!(
+                read(&dir.path().join(&out).join(n)),
+                read(&dir.path().join("clean").join(n)),
+                "{fault}: {n}"
+            );
+        }
+    }
+    let single = std::process::Command::new(env!("CARGO_BIN_EXE_glint"))
+        .args([
+            "render",
+            scene,
+            "one.png",
+            "--backend",
+            "gpu",
+            "--width",
+            "64",
+            "--height",
+            "48",
+        ])
+        .env("GLINT_FAULT", "lost@1")
+        .current_dir(dir.path())
+        .output()
+        .expect("run glint");
+    assert_eq!(
+        single.status.code(),
+        Some(1),
+        "{}",
+        String::from_utf8_lossy(&single.stderr)
+    );
+    assert!(!dir.path().join("one.png").exists());
 }

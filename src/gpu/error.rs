@@ -69,10 +69,10 @@ pub enum GpuError {
         hint: String,
     },
     #[error(
-        "the Vulkan device was lost while rendering the tile at pixel ({x}, {y}) \
-         (the driver reset it or it crashed)"
+        "the Vulkan device was lost ({call} returned VK_ERROR_DEVICE_LOST) while rendering \
+         the tile at pixel ({x}, {y}) (the driver reset it or it crashed)"
     )]
-    DeviceLost { x: u32, y: u32 },
+    DeviceLost { call: &'static str, x: u32, y: u32 },
     /// The renderer's cancel flag was set (`GpuRenderer::set_cancel`): the
     /// tiles in flight were waited for, no others were started.
     #[error("the render was cancelled before it finished")]

@@ -17,6 +17,7 @@ mod context;
 mod debug;
 pub mod driver;
 mod error;
+mod fault;
 mod limits;
 mod pipeline;
 pub mod present;

@@ -572,6 +572,11 @@ impl Gpu<'_> {
                 .call("vkEndCommandBuffer")?;
             let cmds = [slot.command];
             let submit = vk::SubmitInfo::default().command_buffers(&cmds);
+            if let Some(r) = crate::gpu::fault::at_submit() {
+                // Test-only (`GLINT_FAULT`): the command buffer is left
+                // recorded and unsubmitted, as after a real failure.
+                return Err(self.fail(r, work, "vkQueueSubmit", 0));
+            }
             device
                 .queue_submit(shared.queue, &[submit], slot.fence)
                 .map_err(|r| self.fail(r, work, "vkQueueSubmit", 0))?;
@@ -617,7 +622,7 @@ impl Gpu<'_> {
             }
             vk::Result::ERROR_DEVICE_LOST => {
                 self.shared.poison();
-                GpuError::DeviceLost { x, y }
+                GpuError::DeviceLost { call, x, y }
             }
             result => GpuError::Vk { call, result },
         }
