@@ -13,7 +13,7 @@ use crate::cpu::Precision;
 use crate::gpu::DeviceSelector;
 use crate::render::{Backend, RenderOptions, Renderer};
 use crate::scene::read_scene;
-use crate::timing::CPU_TIME_NS;
+use crate::timing::{CPU_TIME_NS, GPU_TIME_NS};
 use crate::Error;
 
 #[derive(Clone, Debug)]
@@ -45,6 +45,10 @@ pub struct SceneResult {
     pub rays: Option<u64>,
     /// Upload + dispatch + readback, per render.
     pub gpu: Option<Stat>,
+    /// The device's own time in the dispatches per render (Vulkan
+    /// timestamps, `timing::GPU_TIME_NS`), where the queue has them: the
+    /// share of `gpu`'s wall clock the device was busy.
+    pub gpu_time: Option<Stat>,
     pub cpu_f32: Option<Stat>,
     pub cpu_f64: Option<Stat>,
     /// The CPU renders' thread CPU time (`timing::CPU_TIME_NS`) per
@@ -123,6 +127,7 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
             bvh: bvh_stat,
             pack: Vec::new(),
             gpu: None,
+            gpu_time: None,
             cpu_f32: None,
             cpu_f64: None,
             cpu_f32_time: None,
@@ -138,10 +143,15 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
             // One untimed render first: drivers compile lazily on first use.
             let first = r.render_prepared_scene(&scene, &ready, &|_, _| {})?;
             result.rays = first.timings.rays().or(result.rays);
+            let mut times = Vec::with_capacity(n);
             result.gpu = repeat(n, || {
-                r.render_prepared_scene(&scene, &ready, &|_, _| {})?;
+                let out = r.render_prepared_scene(&scene, &ready, &|_, _| {})?;
+                if out.timings.has_count(GPU_TIME_NS) {
+                    times.push(Duration::from_nanos(out.timings.counted(GPU_TIME_NS)));
+                }
                 Ok(())
             })?;
+            result.gpu_time = (times.len() == n).then(|| Stat::of(times)).flatten();
             progress(&format!("{name}: gpu {:.1} ms", ms(result.gpu)));
         }
         for (renderer, slot, time_slot, label) in [
@@ -243,6 +253,16 @@ impl BenchReport {
             ),
             _ => cell(s),
         };
+        // The GPU column's wall time, then the device's and their ratio.
+        let gpu_cell = |s: Option<Stat>, time: Option<Stat>, rays: Option<u64>| match (s, time) {
+            (Some(wall), Some(t)) => format!(
+                "{} · GPU {:.2} ms, wall {:.1}x",
+                timed(s, rays),
+                t.median.as_secs_f64() * 1e3,
+                wall.median.as_secs_f64() / t.median.as_secs_f64().max(1e-12)
+            ),
+            _ => timed(s, rays),
+        };
         // The CPU column's wall time, then its threads' CPU time.
         let cpu_cell = |s: Option<Stat>, time: Option<Stat>, rays: Option<u64>| match time {
             Some(t) => format!(
@@ -260,7 +280,9 @@ impl BenchReport {
         if let Some(device) = &self.device {
             let _ = writeln!(
                 out,
-                "{device}; device creation {:.1} ms, pipeline builds {:.1} ms (each feature set once)",
+                "{device}; device creation {:.1} ms, pipeline builds {:.1} ms (each feature set once); \
+                 GPU renders as for an 8-bit file (pixels packed on the device), with the \
+                 device's time in the dispatches and the wall clock's multiple of it",
                 self.device_creation.unwrap_or_default().as_secs_f64() * 1e3,
                 self.pipeline_build.unwrap_or_default().as_secs_f64() * 1e3
             );
@@ -280,7 +302,7 @@ impl BenchReport {
                 s.rays.map_or_else(|| "-".into(), |r| r.to_string()),
                 cell(Some(s.bvh)),
                 pack(&s.pack),
-                timed(s.gpu, s.rays),
+                gpu_cell(s.gpu, s.gpu_time, s.rays),
                 cpu_cell(s.cpu_f32, s.cpu_f32_time, s.rays),
                 cpu_cell(s.cpu_f64, s.cpu_f64_time, s.rays)
             );
