@@ -193,13 +193,7 @@ impl GpuRenderer {
         options: &GpuRenderOptions,
         progress: &(dyn Fn(u64, u64) + Sync),
     ) -> Result<(Framebuffer, Timings), GpuError> {
-        let options = &GpuRenderOptions {
-            pack_rgb8: false,
-            ..*options
-        };
-        let (image, timings) =
-            self.render_image(scene, camera, background, options, None, progress)?;
-        Ok((image.into_float(), timings))
+        self.render_float(scene, camera, background, options, None, progress)
     }
 
     /// Renders `scene` (only the rectangles `rects` (x, y, width, height)
@@ -254,12 +248,25 @@ impl GpuRenderer {
         rects: &[[u32; 4]],
         progress: &(dyn Fn(u64, u64) + Sync),
     ) -> Result<(Framebuffer, Timings), GpuError> {
+        self.render_float(scene, camera, background, options, Some(rects), progress)
+    }
+
+    /// `render_image` into float values, whatever `options.pack_rgb8` says.
+    fn render_float(
+        &self,
+        scene: &GpuScene,
+        camera: &Camera,
+        background: [f32; 3],
+        options: &GpuRenderOptions,
+        rects: Option<&[[u32; 4]]>,
+        progress: &(dyn Fn(u64, u64) + Sync),
+    ) -> Result<(Framebuffer, Timings), GpuError> {
         let options = &GpuRenderOptions {
             pack_rgb8: false,
             ..*options
         };
         let (image, timings) =
-            self.render_image(scene, camera, background, options, Some(rects), progress)?;
+            self.render_image(scene, camera, background, options, rects, progress)?;
         Ok((image.into_float(), timings))
     }
 
