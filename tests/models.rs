@@ -254,6 +254,75 @@ property float z\nend_header\n0 0 0\n1 1 1\n";
     assert!(e.to_string().contains("empty.scene:3:12"), "{e}");
 }
 
+/// A model whose every face was dropped says why it brought nothing: the
+/// scene's error, its warning and `convert` count the dropped faces.
+#[test]
+fn a_model_of_dropped_faces_counts_them() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let d = dir.path();
+    write(
+        d,
+        "line.obj",
+        b"v 0 0 -2\nv 1 0 -2\nv 2 0 -2\nv 3 0 -2\nf 1 2 3\nf 2 3 4\n",
+    );
+    write(
+        d,
+        "alone.scene",
+        format!("1\namb: 0 0 0\nmesh file: line.obj {MATERIAL}\n").as_bytes(),
+    );
+    let e = read_scene(&d.join("alone.scene")).expect_err("nothing to render");
+    assert!(
+        e.to_string()
+            .contains("2 degenerate faces (corners on one line or point) dropped"),
+        "{e}"
+    );
+    write(
+        d,
+        "beside.scene",
+        format!(
+            "2\namb: 0 0 0\nmesh file: line.obj {MATERIAL}\nsphere pos: 0 0 -3 rad: 1 {MATERIAL}\n"
+        )
+        .as_bytes(),
+    );
+    let scene = read_scene(&d.join("beside.scene")).expect("the sphere renders");
+    let w: String = scene.warnings.iter().map(ToString::to_string).collect();
+    assert!(w.contains("2 degenerate faces"), "{w}");
+    let o = glint(&["convert", "line.obj", "out.scene"], d);
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        !o.status.success() && err.contains("2 degenerate faces"),
+        "{err}"
+    );
+}
+
+/// The help names every model format the loader reads.
+#[test]
+fn help_lists_every_model_format() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let formats: Vec<&str> = glint::mesh::EXTENSIONS
+        .split([',', ' '])
+        .filter(|w| w.starts_with('.'))
+        .collect();
+    assert!(formats.len() >= 6, "{formats:?}");
+    for args in [&["--help"][..], &["convert", "--help"]] {
+        let o = glint(args, dir.path());
+        let help = String::from_utf8_lossy(&o.stdout);
+        for f in &formats {
+            assert!(
+                help.contains(f),
+                "`glint {}` does not name {f}:\n{help}",
+                args.join(" ")
+            );
+        }
+    }
+    for f in &formats {
+        assert!(
+            glint::mesh::Format::of(Path::new(&format!("m{f}"))).is_some(),
+            "the help names {f}, which the loader does not read"
+        );
+    }
+}
+
 /// A few triangles with exact f32 coordinates and unit normals, for the
 /// formats to carry alike.
 struct Shape {

@@ -113,7 +113,12 @@ fn model_as_scene(args: &ConvertArgs) -> Result<glint::scene::Scene, glint::Erro
         return Err(glint::mesh::MeshError {
             path: args.input.clone(),
             at: None,
-            message: "nothing to convert: it holds no triangles (points, lines or nothing)".into(),
+            message: match mesh.report.dropped_faces() {
+                Some(dropped) => format!("nothing to convert: it holds no triangles ({dropped})"),
+                None => {
+                    "nothing to convert: it holds no triangles (points, lines or nothing)".into()
+                }
+            },
         }
         .into());
     }

@@ -58,7 +58,7 @@ enum Command {
     /// .exr, alpha marking each part's pixels) into OUT, bit for bit the
     /// image one render would have made.
     Stitch(stitch::StitchArgs),
-    /// Write a model (.obj, .ply, .off) or a scene with `mesh` blocks as a
+    /// Write a model (.obj, .ply, .off, .stl, .gltf, .glb) or a scene with `mesh` blocks as a
     /// classic scene, or a scene's triangles as OBJ (with an MTL file).
     Convert(convert::ConvertArgs),
     /// Is this Vulkan device rendering right? The built-in suite on the

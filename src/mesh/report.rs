@@ -146,6 +146,27 @@ impl Report {
             .join(", ")
     }
 
+    /// The faces read but dropped ("2 degenerate faces (corners on one
+    /// line or point), 1 face with a non-finite vertex"), for a mesh that
+    /// brought no triangles: the reason it is empty.
+    pub fn dropped_faces(&self) -> Option<String> {
+        let count = |k| self.counts.get(&k).copied().unwrap_or(0);
+        let plural = |n: usize| if n == 1 { "" } else { "s" };
+        let mut parts = Vec::new();
+        let n = count(Tolerance::DegenerateFace);
+        if n > 0 {
+            parts.push(format!(
+                "{n} degenerate face{} (corners on one line or point)",
+                plural(n)
+            ));
+        }
+        let n = count(Tolerance::BadPosition);
+        if n > 0 {
+            parts.push(format!("{n} face{} with a non-finite vertex", plural(n)));
+        }
+        (!parts.is_empty()).then(|| format!("{} dropped", parts.join(", ")))
+    }
+
     pub fn merge(&mut self, other: Report) {
         for w in other.kept {
             if self.kept.iter().filter(|k| k.kind == w.kind).count() < KEPT_PER_KIND {

@@ -252,7 +252,14 @@ impl<'a> Parser<'a> {
         if mesh.faces.is_empty() {
             let diagnostic = self.diagnostic(
                 &name_tok,
-                format!("{name} holds no triangles (points, lines or nothing): it adds nothing"),
+                match mesh.report.dropped_faces() {
+                    Some(dropped) => {
+                        format!("{name} holds no triangles ({dropped}): it adds nothing")
+                    }
+                    None => format!(
+                        "{name} holds no triangles (points, lines or nothing): it adds nothing"
+                    ),
+                },
                 Some("check the file: glint renders surfaces (faces, triangles)"),
             );
             self.warn(diagnostic);
@@ -276,7 +283,10 @@ impl<'a> Parser<'a> {
                 &name_tok,
                 format!(
                     "nothing to render: the scene has no spheres or triangles, and {name} \
-                     brought none"
+                     brought none{}",
+                    mesh.report
+                        .dropped_faces()
+                        .map_or(String::new(), |d| format!(" ({d})"))
                 ),
                 Some("check the model file, or add objects to the scene"),
             ));
