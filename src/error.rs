@@ -62,6 +62,12 @@ pub enum Error {
     /// (`Renderer::set_cancel`); nothing of the render is returned.
     #[error("the render was cancelled before it finished")]
     Cancelled,
+    /// A job's image is not written when the validation layer spoke.
+    #[error(
+        "the Vulkan validation layer reported {0} message(s) (printed above); \
+         the result may be wrong, so nothing was written. Please report this with the scene"
+    )]
+    Validation(u32),
     #[error("the Embree harness {harness} failed on {scene}: {reason}")]
     Harness {
         harness: PathBuf,

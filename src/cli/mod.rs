@@ -6,6 +6,7 @@ mod check;
 mod compare;
 mod convert;
 mod devices;
+mod flags;
 mod info;
 mod part;
 mod render;
@@ -17,8 +18,8 @@ mod view;
 use std::path::PathBuf;
 use std::process::ExitCode;
 
-use clap::{Args, Parser, Subcommand, ValueEnum};
-use glint::scene::{Effects, Settings};
+use clap::{Parser, Subcommand};
+pub use flags::{DeviceArgs, EffectArgs, ImageArgs, MethodsArg};
 
 #[derive(Parser, Debug)]
 #[command(
@@ -78,98 +79,6 @@ enum Command {
         #[arg(long, default_value_t = glint::camera::DEFAULT_HEIGHT)]
         height: u32,
     },
-}
-
-/// Overrides of a scene's render settings (its `reflect:`, `spp:`, ...
-/// lines); see docs/scene-format.md.
-#[derive(Args, Clone, Copy, Debug, Default)]
-pub struct EffectArgs {
-    /// Reflection depth in bounces; 0 turns reflection off.
-    #[arg(long, value_name = "D", value_parser = clap::value_parser!(u32).range(0..=Effects::MAX_REFLECT as i64))]
-    reflect: Option<u32>,
-    /// Samples per pixel (antialiasing; also motion-blur time samples).
-    #[arg(long, value_name = "N", value_parser = clap::value_parser!(u32).range(1..=Effects::MAX_SPP as i64))]
-    spp: Option<u32>,
-    /// Shadow rays per area light per shaded point (default 16).
-    #[arg(long, value_name = "M", value_parser = clap::value_parser!(u32).range(1..=Effects::MAX_SHADOW_SAMPLES as i64))]
-    shadow_samples: Option<u32>,
-    /// Fraction of the frame interval the shutter is open: 0 (no motion
-    /// blur) to 1.
-    #[arg(long, value_name = "S", value_parser = parse_shutter)]
-    shutter: Option<f64>,
-    /// Seed of every random sample; the same seed gives the same image.
-    #[arg(long, value_name = "K")]
-    seed: Option<u32>,
-    /// Frames per second: frame i shows the scene at time i / fps.
-    #[arg(long, value_name = "F", value_parser = parse_fps)]
-    fps: Option<f64>,
-}
-
-impl EffectArgs {
-    pub fn settings(&self) -> Settings {
-        Settings {
-            reflect: self.reflect,
-            spp: self.spp,
-            shadow_samples: self.shadow_samples,
-            shutter: self.shutter,
-            seed: self.seed,
-            fps: self.fps,
-        }
-    }
-}
-
-fn parse_shutter(s: &str) -> Result<f64, String> {
-    match s.parse::<f64>() {
-        Ok(v) if (0.0..=1.0).contains(&v) => Ok(v),
-        _ => Err(format!("expected a fraction from 0 to 1, found `{s}`")),
-    }
-}
-
-fn parse_fps(s: &str) -> Result<f64, String> {
-    match s.parse::<f64>() {
-        Ok(v) if v > 0.0 && v.is_finite() => Ok(v),
-        _ => Err(format!(
-            "expected a positive number of frames per second, found `{s}`"
-        )),
-    }
-}
-
-#[derive(Clone, Copy, Debug, ValueEnum)]
-pub enum BackendArg {
-    Auto,
-    Gpu,
-    Cpu,
-}
-
-#[derive(Clone, Copy, Debug, ValueEnum)]
-pub enum MethodsArg {
-    Robust,
-    Naive,
-}
-
-#[derive(Clone, Copy, Debug, ValueEnum)]
-pub enum PrecisionArg {
-    F32,
-    F64,
-}
-
-impl From<BackendArg> for glint::render::Backend {
-    fn from(b: BackendArg) -> Self {
-        match b {
-            BackendArg::Auto => Self::Auto,
-            BackendArg::Gpu => Self::Gpu,
-            BackendArg::Cpu => Self::Cpu,
-        }
-    }
-}
-
-impl From<PrecisionArg> for glint::cpu::Precision {
-    fn from(p: PrecisionArg) -> Self {
-        match p {
-            PrecisionArg::F32 => Self::F32,
-            PrecisionArg::F64 => Self::F64,
-        }
-    }
 }
 
 impl Cli {

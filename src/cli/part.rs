@@ -3,92 +3,36 @@
 //! part (or frame) already done for the same render is kept, not redone.
 
 use std::path::Path;
-use std::process::ExitCode;
-use std::time::Instant;
 
 use anyhow::Context as _;
-use glint::parts::stamp::{render_digest, write_part, Stamp};
 use glint::parts::{part_path, Existing, PartOf};
-use glint::render::{RenderOptions, Renderer};
-use glint::scene::Scene;
-
-/// Everything beside the scene that decides a render's pixels, for its
-/// digest. The backend is not in it: a part from a GPU and one from the CPU
-/// reference belong to one render (stitch says when they are mixed).
-pub(super) fn settings_text(options: &RenderOptions, scene: &Scene) -> String {
-    format!(
-        "{}x{} background {:?} precision {:?} methods {:?} effects {:?}",
-        options.width,
-        options.height,
-        options.background.map(f32::to_bits),
-        options.precision,
-        options.methods,
-        options.effects(scene)
-    )
-}
+use glint::render::{Job, RenderOptions};
 
 /// Resolves `--part` from the arguments and the environment.
 pub(super) fn resolve(arg: &glint::parts::PartArg) -> Result<PartOf, glint::Error> {
     arg.resolve(|name| std::env::var(name).ok())
 }
 
-/// Renders part `part` of the image `out` into its part file, unless that
-/// file already holds this part of this render.
-pub(super) fn render(
-    scene_path: &Path,
-    scene: &Scene,
-    options: &RenderOptions,
-    part: PartOf,
-    out: &Path,
-    verbose: bool,
-) -> anyhow::Result<ExitCode> {
+/// Whether the part file of `part` beside `out` already holds this part
+/// of this render (said, and nothing to do); a file there that does not is
+/// noted and rendered over.
+pub(super) fn already_done(job: &Job, options: &RenderOptions, part: PartOf, out: &Path) -> bool {
     let path = part_path(out, part.index, part.count);
-    let digest = render_digest(scene, &settings_text(options, scene));
-    match glint::parts::existing(&path, &digest, part) {
+    match glint::parts::existing(&path, &job.digest(options), part) {
         Existing::Done(s) => {
             println!(
                 "{part} is already done: {} holds it ({}); nothing to do",
                 path.display(),
                 s.span
             );
-            return Ok(ExitCode::SUCCESS);
+            true
         }
-        Existing::Other(why) => eprintln!("note: replacing {}: {why}", path.display()),
-        Existing::None => {}
+        Existing::Other(why) => {
+            eprintln!("note: replacing {}: {why}", path.display());
+            false
+        }
+        Existing::None => false,
     }
-    let start = Instant::now();
-    let renderer = Renderer::new(options)?;
-    let (output, span) = renderer.render_part(scene, part.index, part.count, &|_, _| {})?;
-    if let Some(note) = &output.note {
-        eprintln!("note: {note}");
-    }
-    super::validation_verdict(output.validation_messages)?;
-    let stamp = Stamp {
-        render: digest,
-        index: part.index,
-        count: part.count,
-        span,
-        height: options.height,
-        renderer: output.renderer.clone(),
-    };
-    write_part(&output.framebuffer(), &stamp, &path)
-        .with_context(|| format!("rendering {}", scene_path.display()))?;
-    println!(
-        "wrote {} ({part} of {}x{}: {}, {} pixels; {}, {:.1} ms); join with `glint stitch {} --parts {}`",
-        path.display(),
-        options.width,
-        options.height,
-        span,
-        span.pixels(),
-        output.renderer,
-        start.elapsed().as_secs_f64() * 1e3,
-        out.display(),
-        part.count
-    );
-    if verbose {
-        println!("timings:\n{}", output.timings);
-    }
-    Ok(ExitCode::SUCCESS)
 }
 
 /// The file in a frame directory that says which render its frames are of.

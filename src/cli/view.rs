@@ -8,8 +8,8 @@ use std::time::Duration;
 use glint::progressive::StopAt;
 use glint::render::RenderOptions;
 
-use super::values::{parse_error_target, parse_rgb, parse_seconds};
-use super::{BackendArg, EffectArgs, PrecisionArg};
+use super::values::{parse_error_target, parse_seconds};
+use super::{DeviceArgs, EffectArgs, ImageArgs};
 
 #[derive(clap::Args, Debug)]
 pub struct ViewArgs {
@@ -18,22 +18,10 @@ pub struct ViewArgs {
     /// Also write the image here when the refinement stops (and when the
     /// window closes): .png, .jpg, .ppm or .exr.
     out: Option<PathBuf>,
-    #[arg(long, default_value_t = glint::camera::DEFAULT_WIDTH, value_parser = clap::value_parser!(u32).range(1..=16384))]
-    width: u32,
-    #[arg(long, default_value_t = glint::camera::DEFAULT_HEIGHT, value_parser = clap::value_parser!(u32).range(1..=16384))]
-    height: u32,
-    /// auto: the best hardware Vulkan device, else the CPU reference.
-    #[arg(long, value_enum, default_value = "auto")]
-    backend: BackendArg,
-    /// Vulkan device by index or name (see `glint devices`).
-    #[arg(long)]
-    device: Option<String>,
-    /// CPU reference arithmetic.
-    #[arg(long, value_enum, default_value = "f32")]
-    precision: PrecisionArg,
-    /// Colour of rays that hit nothing, as R,G,B in [0, 1].
-    #[arg(long, default_value = "1,1,1", value_parser = parse_rgb)]
-    background: [f32; 3],
+    #[command(flatten)]
+    image: ImageArgs,
+    #[command(flatten)]
+    device: DeviceArgs,
     /// Stop refining once the estimated RMSE (linear, 0-1) is at most E.
     #[arg(long, value_name = "E", value_parser = parse_error_target)]
     target_error: Option<f64>,
@@ -48,10 +36,6 @@ pub struct ViewArgs {
     /// by the CPU, as on the CPU reference.
     #[arg(long)]
     host_draws: bool,
-    /// Enable the Vulkan validation layer (when installed); its messages
-    /// are printed as they come.
-    #[arg(long)]
-    validation: bool,
     /// GPU tile edge, fixed (default: the driver profile's, made smaller by the window where a view
     /// change would wait over 100 ms for the tiles in flight)
     #[arg(long, value_parser = clap::value_parser!(u32).range(8..=2048))]
@@ -67,20 +51,8 @@ pub fn run(args: ViewArgs) -> anyhow::Result<ExitCode> {
         glint::framebuffer::check_output(out)?;
     }
     let render = RenderOptions {
-        width: args.width,
-        height: args.height,
-        background: args.background,
-        backend: args.backend.into(),
-        device: args
-            .device
-            .as_deref()
-            .map(glint::gpu::DeviceSelector::parse),
-        precision: args.precision.into(),
-        settings: args.effects.settings(),
         tile: args.tile,
-        validation: args.validation || std::env::var_os("GLINT_VALIDATION").is_some(),
-        pipeline_cache: glint::gpu::cache::default_dir(),
-        ..RenderOptions::default()
+        ..super::flags::render_options(&args.image, &args.device, &args.effects)
     };
     let stem = match args.scene.file_stem() {
         Some(s) if args.scene.as_os_str() != "-" => PathBuf::from(s),

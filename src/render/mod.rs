@@ -20,12 +20,16 @@ use crate::scene::{Effects, Scene};
 use crate::timing::Timings;
 use crate::Error;
 
+mod job;
 mod options;
 mod progressive;
 mod region;
+mod sink;
 
+pub use job::{run, settings_text, Done, Job, Passes, Quiet, Stop, Target, Watch};
 pub use options::{Backend, PixelFormat, RenderOptions};
 use region::Region;
+pub use sink::Sink;
 
 // A part's ends fall between the CPU's packet bands and the GPU's
 // workgroups (`parts::cut::GRAIN_ROWS`).
@@ -328,6 +332,17 @@ impl Renderer {
         count: u32,
         progress: &(dyn Fn(u64, u64) + Sync),
     ) -> Result<(RenderOutput, Span), Error> {
+        self.render_part_as(scene, index, count, self.options.pixels, progress)
+    }
+
+    fn render_part_as(
+        &self,
+        scene: &Scene,
+        index: u32,
+        count: u32,
+        pixels: PixelFormat,
+        progress: &(dyn Fn(u64, u64) + Sync),
+    ) -> Result<(RenderOutput, Span), Error> {
         let (w, h) = (self.options.width, self.options.height);
         if u64::from(count) > u64::from(w) * u64::from(h) || index >= count {
             return Err(Error::InvalidOption(format!(
@@ -343,8 +358,8 @@ impl Renderer {
         let spans = crate::parts::cut::cut(&self.part_costs(scene, &p, &packed, count), count);
         timings.add("part cut", start.elapsed());
         let span = spans[index as usize];
-        let out =
-            self.render_prepared(scene, &p, &packed, timings, Region::Span(span), progress)?;
+        let region = Region::Span(span);
+        let out = self.render_prepared_as(scene, &p, &packed, timings, region, pixels, progress)?;
         Ok((out, span))
     }
 
@@ -384,11 +399,21 @@ impl Renderer {
         region: Region,
         progress: &(dyn Fn(u64, u64) + Sync),
     ) -> Result<RenderOutput, Error> {
+        self.render_region_as(scene, region, self.options.pixels, progress)
+    }
+
+    fn render_region_as(
+        &self,
+        scene: &Scene,
+        region: Region,
+        pixels: PixelFormat,
+        progress: &(dyn Fn(u64, u64) + Sync),
+    ) -> Result<RenderOutput, Error> {
         let scene = &*scene.in_view_space();
         let mut timings = self.take_setup_timings();
         let p = self.prepare(scene, &mut timings);
         let packed = self.pack(scene, &p, &mut timings);
-        self.render_prepared(scene, &p, &packed, timings, region, progress)
+        self.render_prepared_as(scene, &p, &packed, timings, region, pixels, progress)
     }
 
     /// Makes `scene` ready for repeated renders (camera, BVH, packed data),

@@ -2,7 +2,7 @@
 //! on one `Renderer`, each encoded and written on a worker while the next
 //! renders (`glint::write_queue`).
 
-use std::path::Path;
+use std::path::{Path, PathBuf};
 use std::process::ExitCode;
 use std::sync::Arc;
 use std::time::Instant;
@@ -13,17 +13,84 @@ use glint::scene::Scene;
 use glint::write_queue::{Encoded, WriteQueue};
 use indicatif::{ProgressBar, ProgressStyle};
 
-use super::{FrameFormat, RenderArgs};
-use crate::cli::validation_verdict;
+use super::RenderArgs;
+use crate::cli::{print_warnings, read_scene, validation_verdict};
 
 /// Threads that encode and write frames: two keep one frame encoding while
 /// the next is handed over; JPEG's strips run on the render's thread pool
 /// beside the render, so more writers add no cores.
 const WRITERS: usize = 2;
 
+/// `--frames N`: checks the range and OUT (the frames' directory, by
+/// default `<scene stem>_frames`), then renders the animation.
+pub(super) fn run(
+    args: &RenderArgs,
+    frames: u32,
+    out: &Path,
+    defaulted: bool,
+) -> anyhow::Result<ExitCode> {
+    check_frames(args, frames, out, defaulted)?;
+    let scene = read_scene(&args.scene)?;
+    print_warnings(&scene);
+    let dir = if defaulted {
+        let stem = match args.scene.to_str() {
+            Some("-") => "stdin".into(),
+            _ => args
+                .scene
+                .file_stem()
+                .unwrap_or(args.scene.as_os_str())
+                .to_string_lossy(),
+        };
+        PathBuf::from(format!("{stem}_frames"))
+    } else {
+        out.to_path_buf()
+    };
+    let options = RenderOptions {
+        pixels: glint::render::PixelFormat::for_file(args.frame_format.kind()),
+        ..args.options()
+    };
+    animate(&scene, &options, args, frames, &dir)
+}
+
+/// `--frames`: the range fits and OUT can be the frames' directory.
+fn check_frames(args: &RenderArgs, frames: u32, out: &Path, defaulted: bool) -> anyhow::Result<()> {
+    let invalid = |m: String| -> anyhow::Error { glint::Error::InvalidOption(m).into() };
+    if let Some([first, last]) = args.frame_range {
+        if last >= frames {
+            return Err(invalid(format!(
+                "--frame-range {first}-{last} goes past the last frame of --frames {frames} \
+                 (frames count from 0, so the last is {})",
+                frames - 1
+            )));
+        }
+    }
+    if defaulted {
+        return Ok(());
+    }
+    let bad = |reason: String| -> anyhow::Error {
+        glint::Error::BadOutput {
+            path: out.to_path_buf(),
+            reason,
+        }
+        .into()
+    };
+    if glint::framebuffer::ImageFile::of(out).is_ok() {
+        return Err(bad(
+            "with --frames, the output is a directory for 000.jpg, 001.jpg, ...; this is an image name".into(),
+        ));
+    }
+    if out.exists() && !out.is_dir() {
+        return Err(bad(
+            "with --frames, the output is a directory for 000.jpg, 001.jpg, ...; this is a file"
+                .into(),
+        ));
+    }
+    Ok(())
+}
+
 /// Renders frames of an animation with one `Renderer` (device and pipelines
 /// built once), a progress bar over frames, each frame written as it is done.
-pub(super) fn animate(
+fn animate(
     scene: &Scene,
     options: &RenderOptions,
     args: &RenderArgs,
@@ -52,7 +119,7 @@ pub(super) fn animate(
     if share.is_some() {
         let settings = format!(
             "{} frames {frames}",
-            crate::cli::part::settings_text(options, scene)
+            glint::render::settings_text(options, scene)
         );
         let digest = glint::parts::stamp::render_digest(scene, &settings);
         crate::cli::part::claim_frames(dir, &digest)?;
@@ -69,12 +136,7 @@ pub(super) fn animate(
         );
     }
     let digits = (frames - 1).to_string().len().max(3);
-    let ext = match args.frame_format {
-        FrameFormat::Jpg => "jpg",
-        FrameFormat::Png => "png",
-        FrameFormat::Ppm => "ppm",
-        FrameFormat::Exr => "exr",
-    };
+    let ext = args.frame_extension();
     let bar = ProgressBar::new(u64::from(last - first + 1));
     bar.set_style(
         ProgressStyle::with_template(
@@ -141,8 +203,8 @@ pub(super) fn animate(
     println!(
         "wrote frames {first:0digits$}..{last:0digits$}.{ext} to {} ({}x{}, {}, {:.2} s, {} fps scene time)",
         dir.display(),
-        args.width,
-        args.height,
+        args.image.width,
+        args.image.height,
         renderer.name(),
         start.elapsed().as_secs_f64(),
         effects.fps

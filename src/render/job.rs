@@ -1,0 +1,245 @@
+//! A render as one value and one call: a `Job` says what to render and
+//! when to stop, a `Sink` where the image goes, and `Renderer::run` carries
+//! it out. Every command that renders an image builds a `Job`; a project of
+//! its own can do the same (`examples/`).
+
+use std::path::PathBuf;
+
+use super::{PixelFormat, Region, RenderOptions, Renderer};
+use crate::output::RenderOutput;
+use crate::parts::cut::Span;
+use crate::parts::PartOf;
+use crate::progressive::{PassReport, StopAt, Stopped};
+use crate::region::Crop;
+use crate::scene::Scene;
+use crate::Error;
+
+pub use super::sink::Sink;
+
+/// Which pixels of the image a job renders.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Target {
+    /// Every pixel.
+    Image,
+    /// Only the pixels inside the rectangle, each with the value a full
+    /// render gives it; the others are 0.
+    Crop(Crop),
+    /// One task's share of a render spread over machines (`parts`), cut
+    /// alike by every task from the same scene and settings.
+    Part(PartOf),
+}
+
+/// When a job is done.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub enum Stop {
+    /// One render of the scene's samples per pixel.
+    Once,
+    /// Passes of the scene's samples per pixel, each with its own seed,
+    /// until the rule says stop (`progressive`).
+    Passes(StopAt),
+}
+
+/// What to render of a scene, and when to stop.
+#[derive(Clone, Copy, Debug)]
+pub struct Job<'a> {
+    pub scene: &'a Scene,
+    pub target: Target,
+    pub stop: Stop,
+}
+
+impl<'a> Job<'a> {
+    /// The whole image, rendered once.
+    pub fn new(scene: &'a Scene) -> Job<'a> {
+        Job {
+            scene,
+            target: Target::Image,
+            stop: Stop::Once,
+        }
+    }
+
+    /// Only the pixels of `crop`.
+    pub fn crop(self, crop: Crop) -> Job<'a> {
+        Job {
+            target: Target::Crop(crop),
+            ..self
+        }
+    }
+
+    /// Part `part.index` of `part.count`.
+    pub fn part(self, part: PartOf) -> Job<'a> {
+        Job {
+            target: Target::Part(part),
+            ..self
+        }
+    }
+
+    /// In passes until `stop` says so.
+    pub fn until(self, stop: StopAt) -> Job<'a> {
+        Job {
+            stop: Stop::Passes(stop),
+            ..self
+        }
+    }
+
+    /// What a part file records of the render it belongs to: the scene and
+    /// every setting that decides its pixels. The backend is not in it: a
+    /// part from a GPU and one from the CPU reference belong to one render
+    /// (`glint stitch` says when they are mixed).
+    pub fn digest(&self, options: &RenderOptions) -> String {
+        crate::parts::stamp::render_digest(self.scene, &settings_text(options, self.scene))
+    }
+
+    /// Settings a job cannot have, found before any work.
+    fn check(&self, options: &RenderOptions) -> Result<(), Error> {
+        let (w, h) = (options.width, options.height);
+        match (self.target, self.stop) {
+            (Target::Crop(c), _) => c.check(w, h)?,
+            (Target::Part(p), _) => {
+                if u64::from(p.count) > u64::from(w) * u64::from(h) || p.index >= p.count {
+                    return Err(Error::InvalidOption(format!(
+                        "part {} of {}: a {w}x{h} image has {} pixels, and each part holds one at least",
+                        p.index,
+                        p.count,
+                        u64::from(w) * u64::from(h)
+                    )));
+                }
+            }
+            (Target::Image, _) => {}
+        }
+        if let (Target::Crop(_) | Target::Part(_), Stop::Passes(_)) = (self.target, self.stop) {
+            return Err(Error::InvalidOption(
+                "progressive passes render the whole image; a crop or a part is rendered once"
+                    .into(),
+            ));
+        }
+        Ok(())
+    }
+}
+
+/// Everything beside the scene that decides a render's pixels.
+pub fn settings_text(options: &RenderOptions, scene: &Scene) -> String {
+    format!(
+        "{}x{} background {:?} precision {:?} methods {:?} effects {:?}",
+        options.width,
+        options.height,
+        options.background.map(f32::to_bits),
+        options.precision,
+        options.methods,
+        options.effects(scene)
+    )
+}
+
+/// Who hears how a job goes; every method does nothing unless overridden.
+pub trait Watch: Sync {
+    /// Pixels (GPU) or rows (CPU) finished of a render: `done` of `total`.
+    fn progress(&self, _done: u64, _total: u64) {}
+    /// A progressive pass finished.
+    fn pass(&self, _report: &PassReport) {}
+}
+
+/// Hears nothing.
+pub struct Quiet;
+
+impl Watch for Quiet {}
+
+/// What a progressive job's passes came to.
+#[derive(Clone, Debug)]
+pub struct Passes {
+    /// The last pass's report.
+    pub report: PassReport,
+    pub stopped: Stopped,
+}
+
+/// A job carried out.
+pub struct Done {
+    /// The image (as the sink asked for it) and how it was made; its
+    /// timings include `encode` and `write` where the sink wrote a file.
+    pub output: RenderOutput,
+    /// Where the image was written: the file, or the part file beside it;
+    /// `None` for a memory sink.
+    pub written: Option<PathBuf>,
+    /// A part's pixels, in the image's row-major order.
+    pub span: Option<Span>,
+    /// A progressive job's passes.
+    pub passes: Option<Passes>,
+}
+
+impl Renderer {
+    /// Carries out `job`, handing the image to `sink`. Nothing is written
+    /// when the Vulkan validation layer reported messages: the image may be
+    /// wrong (`Error::Validation`).
+    pub fn run(&self, job: &Job, sink: &Sink, watch: &dyn Watch) -> Result<Done, Error> {
+        job.check(&self.options)?;
+        sink.check(&job.target)?;
+        let pixels = sink.pixels(&job.target);
+        let progress = |done: u64, total: u64| watch.progress(done, total);
+        let (mut output, span, passes) = match (job.target, job.stop) {
+            (Target::Image, Stop::Once) => {
+                let out = self.render_region_as(job.scene, Region::All, pixels, &progress)?;
+                (out, None, None)
+            }
+            (Target::Crop(c), _) => {
+                let out = self.render_region_as(job.scene, Region::Crop(c), pixels, &progress)?;
+                (out, None, None)
+            }
+            (Target::Part(p), _) => {
+                let (out, span) =
+                    self.render_part_as(job.scene, p.index, p.count, pixels, &progress)?;
+                (out, Some(span), None)
+            }
+            (Target::Image, Stop::Passes(stop)) => {
+                let done = self.render_progressive(job.scene, &stop, &mut |r| watch.pass(r))?;
+                let passes = Passes {
+                    report: done.report,
+                    stopped: done.stopped,
+                };
+                (done.output, None, Some(passes))
+            }
+        };
+        if output.validation_messages > 0 {
+            return Err(Error::Validation(output.validation_messages));
+        }
+        let stamp = match (job.target, span) {
+            (Target::Part(p), Some(span)) => Some(crate::parts::stamp::Stamp {
+                render: job.digest(&self.options),
+                index: p.index,
+                count: p.count,
+                span,
+                height: self.options.height,
+                renderer: output.renderer.clone(),
+            }),
+            _ => None,
+        };
+        let written = sink.write(
+            &output.image,
+            &job.target,
+            stamp.as_ref(),
+            &mut output.timings,
+        )?;
+        Ok(Done {
+            output,
+            written,
+            span,
+            passes,
+        })
+    }
+}
+
+/// Carries out `job` on a `Renderer` set up for this call only.
+pub fn run(options: &RenderOptions, job: &Job, sink: &Sink) -> Result<Done, Error> {
+    Renderer::new(options)?.run(job, sink, &Quiet)
+}
+
+impl Sink {
+    /// What the render should hand back for this sink: the file's own
+    /// pixels, or floats where a part file keeps them.
+    fn pixels(&self, target: &Target) -> PixelFormat {
+        match (self, target) {
+            (Sink::Memory(p), _) => *p,
+            (_, Target::Crop(_) | Target::Part(_)) => PixelFormat::Float,
+            (Sink::Stdout(_), Target::Image) => PixelFormat::Rgb8,
+            (Sink::File { path, .. }, Target::Image) => crate::framebuffer::ImageFile::of(path)
+                .map_or(PixelFormat::Float, PixelFormat::for_file),
+        }
+    }
+}

@@ -1,0 +1,116 @@
+//! Where a job's image goes: kept in memory, an image file (written
+//! atomically, encoded as its extension says), a part file for `glint
+//! stitch`, or PNG on standard output.
+
+use std::path::{Path, PathBuf};
+
+use super::job::Target;
+use super::PixelFormat;
+use crate::encode::EncodeOptions;
+use crate::framebuffer::{check_output, Image, ImageFile};
+use crate::parts::stamp::Stamp;
+use crate::timing::Timings;
+use crate::Error;
+
+/// Where a job's image goes.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Sink {
+    /// Kept in `Done::output.image`, as floats or 8-bit pixels.
+    Memory(PixelFormat),
+    /// An image file, its format by its extension (.jpg, .png, .ppm, .exr).
+    /// A crop is written as a full-size .png or .exr whose alpha marks its
+    /// pixels, a part as its stamped part file beside `path`
+    /// (`out.part03-of-16.png`), each for `glint stitch`.
+    File {
+        path: PathBuf,
+        encode: EncodeOptions,
+    },
+    /// PNG on standard output (a crop as its part image).
+    Stdout(EncodeOptions),
+}
+
+impl Sink {
+    /// An image file with the default encoder settings.
+    pub fn file(path: impl Into<PathBuf>) -> Sink {
+        Sink::File {
+            path: path.into(),
+            encode: EncodeOptions::default(),
+        }
+    }
+
+    /// Whether the sink can take what `target` makes: the file's type and
+    /// its directory, checked before any work.
+    pub fn check(&self, target: &Target) -> Result<(), Error> {
+        match (self, target) {
+            (Sink::Memory(_), _) | (Sink::Stdout(_), Target::Image | Target::Crop(_)) => Ok(()),
+            (Sink::Stdout(_), Target::Part(_)) => Err(Error::InvalidOption(
+                "--part writes a part file beside OUT for `glint stitch`; name OUT, not `-`".into(),
+            )),
+            (Sink::File { path, .. }, Target::Image) => check_output(path),
+            (Sink::File { path, .. }, Target::Crop(_)) => {
+                crate::region::check_part_format(path)?;
+                check_output(path)
+            }
+            (Sink::File { path, .. }, Target::Part(p)) => {
+                ImageFile::of(path)?;
+                check_output(&crate::parts::part_path(path, p.index, p.count))
+            }
+        }
+    }
+
+    /// Writes `image`, adding `encode` and `write` to `timings`; returns
+    /// the path written.
+    pub(super) fn write(
+        &self,
+        image: &Image,
+        target: &Target,
+        stamp: Option<&Stamp>,
+        timings: &mut Timings,
+    ) -> Result<Option<PathBuf>, Error> {
+        let (path, encode) = match self {
+            Sink::Memory(_) => return Ok(None),
+            Sink::File { path, encode } => (Some(path.as_path()), encode),
+            Sink::Stdout(encode) => (None, encode),
+        };
+        let shown = || path.unwrap_or(Path::new("standard output")).to_path_buf();
+        match (target, path) {
+            (Target::Crop(c), Some(p)) => {
+                let fb = image.to_float();
+                timings.time("write", || crate::region::write_part(&fb, c, p))?;
+            }
+            (Target::Crop(c), None) => {
+                let fb = image.to_float();
+                timings.time("write", || crate::region::write_part_to_stdout(&fb, c))?;
+            }
+            (Target::Part(p), Some(out)) => {
+                let stamp = stamp.ok_or_else(|| {
+                    Error::InvalidOption("a part is written with its stamp".into())
+                })?;
+                let file = crate::parts::part_path(out, p.index, p.count);
+                let fb = image.to_float();
+                timings.time("write", || {
+                    crate::parts::stamp::write_part(&fb, stamp, &file)
+                })?;
+                return Ok(Some(file));
+            }
+            (Target::Part(_), None) => self.check(target)?,
+            (Target::Image, _) => {
+                let kind = match path {
+                    Some(p) => ImageFile::of(p)?,
+                    None => ImageFile::Png,
+                };
+                let bytes = timings
+                    .time("encode", || image.encode(kind, encode))
+                    .map_err(|e| Error::WriteImage {
+                        path: shown(),
+                        error: std::io::Error::other(e),
+                    })?;
+                timings.time("write", || match path {
+                    Some(p) => crate::framebuffer::write_bytes(p, &bytes),
+                    None => crate::framebuffer::write_bytes_to_stdout(&bytes),
+                })?;
+            }
+        }
+        Ok(Some(shown()))
+    }
+}
