@@ -152,3 +152,48 @@ fn a_second_run_compiles_nothing_where_the_driver_keeps_pipelines() {
         text(&second)
     );
 }
+
+/// `check::image_test`, the suite's judging as one library call: a scene
+/// of one's own passes on the device CI has, and a tolerance nothing can
+/// meet fails it, naming why and writing the device's image, the CPU
+/// twin's and their difference.
+#[test]
+fn an_image_test_of_ones_own_scene_passes_and_fails_visibly() {
+    if gpu().is_none() {
+        return;
+    }
+    let scene = scene_from(
+        "2\namb: 0.1 0.1 0.1\n\
+         sphere pos: 0 0 -3 rad: 1 dif: 0.2 0.6 0.9 spe: 0.3 0.3 0.3 shi: 16\n\
+         light pos: 2 3 0 col: 1 1 1\n",
+    );
+    let dir = tempfile::tempdir().expect("temp dir");
+    let test = glint::check::ImageTest {
+        out: Some(dir.path().join("failures")),
+        ..glint::check::ImageTest::new("ball", 96, 72)
+    };
+    let v = glint::check::image_test(&scene, &test).expect("renders on both");
+    assert!(v.passed(), "{:?}", v.failure);
+    assert!(v.device.starts_with("GPU"), "{}", v.device);
+    assert!(v.written.is_empty());
+    let strict = glint::check::ImageTest {
+        tolerance: glint::check::Tolerance {
+            f32_flip: -1.0,
+            ..glint::check::Tolerance::TIGHT
+        },
+        ..test
+    };
+    let v = glint::check::image_test(&scene, &strict).expect("renders on both");
+    let why = v.failure.as_deref().unwrap_or_default();
+    assert!(why.contains("FLIP") && why.contains("f32 twin"), "{why}");
+    assert_eq!(v.written.len(), 3);
+    for path in &v.written {
+        let image = glint::framebuffer::open(path).expect("a readable image");
+        assert_eq!(
+            (image.width(), image.height()),
+            (96, 72),
+            "{}",
+            path.display()
+        );
+    }
+}

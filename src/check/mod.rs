@@ -4,6 +4,7 @@
 //! with what glint chose for the device, the time and the rays per second.
 //! `report` prints the table and writes JUnit XML.
 
+mod image_test;
 pub mod report;
 pub mod suite;
 
@@ -18,6 +19,7 @@ use crate::gpu::{DeviceInfo, DeviceLimits, DeviceSelector};
 use crate::render::{Backend, RenderOptions, Renderer};
 use crate::timing::{CLOSEST_RAYS, SHADOW_RAYS};
 use crate::Error;
+pub use image_test::{image_test, ImageTest, Verdict};
 pub use suite::{Case, Level, Tolerance};
 
 /// What `glint check` was asked for.
@@ -220,35 +222,8 @@ fn check_case(
     let truth = cpu64.render(&case.scene, &quiet)?.into_framebuffer();
     let against_twin = compare_framebuffers(&twin, &image, 1.0)?;
     let against_truth = compare_framebuffers(&truth, &image, 1.0)?;
-    let t = &case.tolerance;
     let pixels = (case.width * case.height) as usize;
-    let allowed = ((pixels as f64 * t.f32_fraction) as usize).max(t.f32_min_pixels);
-    let mut why = Vec::new();
-    if against_twin.over_threshold > allowed {
-        why.push(format!(
-            "{} pixels more than 1 level off the CPU f32 twin (allowed {allowed}; worst {:.0} levels at {})",
-            against_twin.over_threshold,
-            against_twin.max_abs,
-            against_twin
-                .worst
-                .first()
-                .map_or(String::new(), |w| format!("{},{}", w.x, w.y))
-        ));
-    }
-    if against_twin.flip_mean > t.f32_flip {
-        why.push(format!(
-            "FLIP {:.5} against the f32 twin (allowed {})",
-            against_twin.flip_mean, t.f32_flip
-        ));
-    }
-    if let Some(limit) = t.f64_flip {
-        if against_truth.flip_mean > limit {
-            why.push(format!(
-                "FLIP {:.4} against the f64 reference (allowed {limit})",
-                against_truth.flip_mean
-            ));
-        }
-    }
+    let (mut why, allowed) = judge(&case.tolerance, pixels, &against_twin, &against_truth);
     if let Some(hard) = &case.hard {
         let (probe, _) = crate::hard::probe(
             hard,
@@ -266,7 +241,7 @@ fn check_case(
     }
     let failure = (!why.is_empty()).then(|| why.join("; "));
     if let (Some(dir), Some(_)) = (&options.out, &failure) {
-        write_failure(dir, case, &image, &twin, &against_twin)?;
+        write_failure(dir, &case.name, &image, &twin, &against_twin)?;
     }
     let timings = &on_device.timings;
     // The pass loop builds a pipeline when a tile first needs it; its build
@@ -298,6 +273,44 @@ fn check_case(
     })
 }
 
+/// What is wrong with a device's image against the CPU twin and truth, by
+/// `t` (nothing: it passes), and how many pixels may be off.
+fn judge(
+    t: &Tolerance,
+    pixels: usize,
+    against_twin: &Comparison,
+    against_truth: &Comparison,
+) -> (Vec<String>, usize) {
+    let allowed = ((pixels as f64 * t.f32_fraction) as usize).max(t.f32_min_pixels);
+    let mut why = Vec::new();
+    if against_twin.over_threshold > allowed {
+        why.push(format!(
+            "{} pixels more than 1 level off the CPU f32 twin (allowed {allowed}; worst {:.0} levels at {})",
+            against_twin.over_threshold,
+            against_twin.max_abs,
+            against_twin
+                .worst
+                .first()
+                .map_or(String::new(), |w| format!("{},{}", w.x, w.y))
+        ));
+    }
+    if against_twin.flip_mean > t.f32_flip {
+        why.push(format!(
+            "FLIP {:.5} against the f32 twin (allowed {})",
+            against_twin.flip_mean, t.f32_flip
+        ));
+    }
+    if let Some(limit) = t.f64_flip {
+        if against_truth.flip_mean > limit {
+            why.push(format!(
+                "FLIP {:.4} against the f64 reference (allowed {limit})",
+                against_truth.flip_mean
+            ));
+        }
+    }
+    (why, allowed)
+}
+
 /// The planted error: a block of wrong pixels in the middle of the image.
 fn plant(image: &mut Framebuffer) {
     let (w, h) = (image.width as usize, image.height as usize);
@@ -308,25 +321,24 @@ fn plant(image: &mut Framebuffer) {
     }
 }
 
+/// Writes a failed image beside the CPU twin's and their difference as a
+/// heat map (`NAME.device.png`, `NAME.cpu.png`, `NAME.diff.png`).
 fn write_failure(
     dir: &std::path::Path,
-    case: &Case,
+    name: &str,
     image: &Framebuffer,
     twin: &Framebuffer,
     cmp: &Comparison,
-) -> Result<(), Error> {
+) -> Result<Vec<PathBuf>, Error> {
     std::fs::create_dir_all(dir).map_err(|error| Error::WriteFile {
         path: dir.to_path_buf(),
         error,
     })?;
-    let base = dir.join(&case.name);
+    let base = dir.join(name);
     let twin8 = twin.to_rgb8();
-    write_image(&image.to_rgb8(), &base.with_extension("device.png"), 95)?;
-    write_image(&twin8, &base.with_extension("cpu.png"), 95)?;
-    write_image(
-        &cmp.diff_image(&twin8),
-        &base.with_extension("diff.png"),
-        95,
-    )?;
-    Ok(())
+    let paths = ["device.png", "cpu.png", "diff.png"].map(|e| base.with_extension(e));
+    write_image(&image.to_rgb8(), &paths[0], 95)?;
+    write_image(&twin8, &paths[1], 95)?;
+    write_image(&cmp.diff_image(&twin8), &paths[2], 95)?;
+    Ok(paths.to_vec())
 }
