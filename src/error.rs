@@ -62,6 +62,9 @@ pub enum Error {
     /// (`Renderer::set_cancel`); nothing of the render is returned.
     #[error("the render was cancelled before it finished")]
     Cancelled,
+    /// What failed in frame `index` of an animation.
+    #[error("frame {index}: {error}")]
+    Frame { index: u32, error: Box<Error> },
     /// A job's image is not written when the validation layer spoke.
     #[error(
         "the Vulkan validation layer reported {0} message(s) (printed above); \
@@ -105,7 +108,16 @@ impl Error {
             | Error::Parts(_)
             | Error::BadOutput { .. } => 2,
             Error::Gpu(GpuError::Loader(_) | GpuError::NoDevice | GpuError::DeviceNotFound(_)) => 3,
+            Error::Frame { error, .. } => error.exit_code(),
             _ => 1,
+        }
+    }
+
+    /// This error, as frame `index`'s.
+    pub fn in_frame(self, index: u32) -> Error {
+        Error::Frame {
+            index,
+            error: Box::new(self),
         }
     }
 }

@@ -5,11 +5,11 @@
 mod common;
 
 use common::*;
-use glint::framebuffer::Image;
+use glint::framebuffer::{Image, ImageFile};
 use glint::parts::{existing, Existing, PartOf};
 use glint::progressive::StopAt;
 use glint::region::Crop;
-use glint::render::{Backend, Job, PixelFormat, Quiet, RenderOptions, Renderer, Sink};
+use glint::render::{Backend, Frames, Job, PixelFormat, Quiet, RenderOptions, Renderer, Sink};
 
 const SCENE: &str = "3\namb: 0.1 0.1 0.1\n\
     sphere pos: -0.5 0 -3 rad: 0.7 dif: 0.8 0.2 0.1 spe: 0.4 0.4 0.4 shi: 12\n\
@@ -71,7 +71,28 @@ fn jobs_that_cannot_be_done_are_refused_before_any_work() {
     refused(
         Job::new(&scene).crop(crop).until(stop),
         memory(),
-        "crop or a part",
+        "a crop, a part or frames",
+    );
+    let frames = Frames {
+        count: 4,
+        range: None,
+        part: None,
+    };
+    refused(Job::new(&scene).frames(frames), memory(), "Sink::Frames");
+    let past = Frames {
+        range: Some([2, 4]),
+        ..frames
+    };
+    let to_dir = |name: &str| Sink::Frames {
+        dir: dir.path().join(name),
+        format: ImageFile::Png,
+        encode: Default::default(),
+    };
+    refused(Job::new(&scene).frames(past), to_dir("f"), "last is 3");
+    refused(
+        Job::new(&scene).frames(frames),
+        to_dir("f.png"),
+        "image name",
     );
     let outside = Crop::parse("70,50,90,70").expect("a crop");
     refused(Job::new(&scene).crop(outside), memory(), "80x60");
@@ -126,4 +147,39 @@ fn a_part_job_writes_the_part_its_requeue_check_knows() {
         existing(&written, &job.digest(&other), part),
         Existing::Other(_)
     ));
+}
+
+/// A frames job writes each frame of its range, numbered by the whole
+/// animation's width; a still scene's frames are one image.
+#[test]
+fn a_frames_job_writes_its_range() {
+    let scene = scene_from(SCENE);
+    let dir = tempfile::tempdir().expect("temp dir");
+    let frames = Frames {
+        count: 1200,
+        range: Some([7, 9]),
+        part: None,
+    };
+    let sink = Sink::Frames {
+        dir: dir.path().join("anim"),
+        format: ImageFile::Png,
+        encode: Default::default(),
+    };
+    let done = renderer()
+        .run(&Job::new(&scene).frames(frames), &sink, &Quiet)
+        .expect("frames");
+    let f = done.frames.expect("a frames report");
+    assert_eq!(
+        (f.first, f.last, f.rendered, f.written, f.kept),
+        (7, 9, 3, 3, 0)
+    );
+    let mut names: Vec<String> = std::fs::read_dir(dir.path().join("anim"))
+        .expect("the frame directory")
+        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["0007.png", "0008.png", "0009.png"]);
+    let first = glint::framebuffer::open(&dir.path().join("anim/0007.png")).expect("a frame");
+    let last = glint::framebuffer::open(&dir.path().join("anim/0009.png")).expect("a frame");
+    assert_eq!(first.to_rgb8(), last.to_rgb8());
 }

@@ -4,7 +4,6 @@
 
 use std::path::Path;
 
-use anyhow::Context as _;
 use glint::parts::{part_path, Existing, PartOf};
 use glint::render::{Job, RenderOptions};
 
@@ -33,49 +32,4 @@ pub(super) fn already_done(job: &Job, options: &RenderOptions, part: PartOf, out
         }
         Existing::None => false,
     }
-}
-
-/// The file in a frame directory that says which render its frames are of.
-const FRAMES_STAMP: &str = ".glint-frames";
-
-/// Before an animation's part renders into `dir`: the directory holds no
-/// frames of another render. Writes the directory's stamp when it has none.
-pub(super) fn claim_frames(dir: &Path, digest: &str) -> anyhow::Result<()> {
-    let stamp = dir.join(FRAMES_STAMP);
-    let line = format!("render {digest}\n");
-    // Read no more than a stamp can hold: whatever lies under that name.
-    let read = std::fs::File::open(&stamp).and_then(|f| {
-        let mut found = String::new();
-        std::io::Read::read_to_string(
-            &mut std::io::Read::take(f, 4 * line.len() as u64),
-            &mut found,
-        )
-        .map(|_| found)
-    });
-    match read {
-        Ok(found) if found == line => Ok(()),
-        Ok(found) => anyhow::bail!(
-            "{} holds frames of another render ({}; this one is {digest}: another scene, \
-             settings or glint version); give this render a directory of its own, or empty that one",
-            dir.display(),
-            found.trim()
-        ),
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {
-            // Written to a temporary file and renamed: tasks starting
-            // together write the same line, and none sees half of it.
-            let mut tmp = tempfile::NamedTempFile::new_in(dir)
-                .with_context(|| format!("writing {}", stamp.display()))?;
-            std::io::Write::write_all(&mut tmp, line.as_bytes())?;
-            tmp.persist(&stamp)
-                .with_context(|| format!("writing {}", stamp.display()))?;
-            Ok(())
-        }
-        Err(e) => Err(e).with_context(|| format!("reading {}", stamp.display())),
-    }
-}
-
-/// Whether a frame is already there, whole: frames are written to a
-/// temporary file and renamed, so one under its name decoded in full is done.
-pub(super) fn frame_done(path: &Path) -> bool {
-    path.exists() && glint::framebuffer::open(path).is_ok()
 }

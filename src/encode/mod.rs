@@ -43,6 +43,16 @@ impl ImageFile {
         }
     }
 
+    /// The extension glint writes it with.
+    pub fn extension(self) -> &'static str {
+        match self {
+            ImageFile::Png => "png",
+            ImageFile::Jpeg => "jpg",
+            ImageFile::Exr => "exr",
+            ImageFile::Ppm => "ppm",
+        }
+    }
+
     /// Whether it keeps float values (else 8 bits per channel).
     pub fn is_float(self) -> bool {
         self == ImageFile::Exr

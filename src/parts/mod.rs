@@ -5,10 +5,12 @@
 //!
 //! - `cut`: which pixels (or frames) each part holds, balanced by cost.
 //! - `stamp`: what a part file records of itself, and its digest of the render.
+//! - `frames`: an animation's frame directory shared by the tasks of an array.
 //! - here: the index's source, part file names, the requeue check, and
 //!   finding, waiting for and vetting the parts of a stitch.
 
 pub mod cut;
+pub mod frames;
 pub mod stamp;
 
 use std::fmt;

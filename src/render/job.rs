@@ -14,6 +14,7 @@ use crate::region::Crop;
 use crate::scene::Scene;
 use crate::Error;
 
+pub use super::frames::Frames;
 pub use super::sink::Sink;
 
 /// Which pixels of the image a job renders.
@@ -27,6 +28,9 @@ pub enum Target {
     /// One task's share of a render spread over machines (`parts`), cut
     /// alike by every task from the same scene and settings.
     Part(PartOf),
+    /// An animation's frames, each a whole image, into a directory
+    /// (`Sink::Frames`).
+    Frames(Frames),
 }
 
 /// When a job is done.
@@ -61,6 +65,14 @@ impl<'a> Job<'a> {
     pub fn crop(self, crop: Crop) -> Job<'a> {
         Job {
             target: Target::Crop(crop),
+            ..self
+        }
+    }
+
+    /// The frames `frames` says.
+    pub fn frames(self, frames: Frames) -> Job<'a> {
+        Job {
+            target: Target::Frames(frames),
             ..self
         }
     }
@@ -104,11 +116,16 @@ impl<'a> Job<'a> {
                     )));
                 }
             }
+            (Target::Frames(f), _) => {
+                f.share()?;
+            }
             (Target::Image, _) => {}
         }
-        if let (Target::Crop(_) | Target::Part(_), Stop::Passes(_)) = (self.target, self.stop) {
+        if let (Target::Crop(_) | Target::Part(_) | Target::Frames(_), Stop::Passes(_)) =
+            (self.target, self.stop)
+        {
             return Err(Error::InvalidOption(
-                "progressive passes render the whole image; a crop or a part is rendered once"
+                "progressive passes render one whole image; a crop, a part or frames are rendered once"
                     .into(),
             ));
         }
@@ -135,6 +152,11 @@ pub trait Watch: Sync {
     fn progress(&self, _done: u64, _total: u64) {}
     /// A progressive pass finished.
     fn pass(&self, _report: &PassReport) {}
+    /// Frame `index` was rendered (its output, before its image goes to
+    /// the writers), or was already there and is kept (`None`).
+    fn frame(&self, _index: u32, _output: Option<&RenderOutput>) {}
+    /// Frames written so far (on the writers, behind the renders).
+    fn frames_written(&self, _count: u32) {}
 }
 
 /// Hears nothing.
@@ -162,6 +184,54 @@ pub struct Done {
     pub span: Option<Span>,
     /// A progressive job's passes.
     pub passes: Option<Passes>,
+    /// An animation's frames.
+    pub frames: Option<FramesDone>,
+}
+
+/// What an animation job did.
+#[derive(Clone, Debug, Default)]
+pub struct FramesDone {
+    /// The frames it was to render, inclusive; none (`first > last` is not
+    /// used) where `rendered + kept` is 0 and the part had no frame.
+    pub first: u32,
+    pub last: u32,
+    /// Frames rendered, written, and found already there whole and kept.
+    pub rendered: u32,
+    pub written: u32,
+    pub kept: u32,
+    /// The renders' timings, summed over the frames.
+    pub render_timings: crate::timing::Timings,
+    /// The writers' encode and write times, summed over them.
+    pub write_timings: crate::timing::Timings,
+}
+
+impl Done {
+    /// An animation's result: `output` carries the renders' summed timings
+    /// and the last frame's render details; its image is empty (0x0), as
+    /// the frames are in their files.
+    pub(super) fn frames(renderer: String, frames: FramesDone) -> Done {
+        let output = RenderOutput {
+            image: crate::framebuffer::Image::Float(crate::framebuffer::Framebuffer {
+                width: 0,
+                height: 0,
+                pixels: Vec::new(),
+            }),
+            timings: frames.render_timings.clone(),
+            renderer,
+            note: None,
+            validation_messages: 0,
+            memory: Default::default(),
+            bvh: Default::default(),
+            samples: 0,
+        };
+        Done {
+            output,
+            written: None,
+            span: None,
+            passes: None,
+            frames: Some(frames),
+        }
+    }
 }
 
 impl Renderer {
@@ -171,6 +241,17 @@ impl Renderer {
     pub fn run(&self, job: &Job, sink: &Sink, watch: &dyn Watch) -> Result<Done, Error> {
         job.check(&self.options)?;
         sink.check(&job.target)?;
+        if let (
+            Target::Frames(frames),
+            Sink::Frames {
+                dir,
+                format,
+                encode,
+            },
+        ) = (job.target, sink)
+        {
+            return self.run_frames(job, frames, dir, *format, encode, watch);
+        }
         let pixels = sink.pixels(&job.target);
         let progress = |done: u64, total: u64| watch.progress(done, total);
         let (mut output, span, passes) = match (job.target, job.stop) {
@@ -187,6 +268,7 @@ impl Renderer {
                     self.render_part_as(job.scene, p.index, p.count, pixels, &progress)?;
                 (out, Some(span), None)
             }
+            (Target::Frames(_), _) => unreachable!("`Sink::check` pairs frames with their sink"),
             (Target::Image, Stop::Passes(stop)) => {
                 let done = self.render_progressive(job.scene, &stop, &mut |r| watch.pass(r))?;
                 let passes = Passes {
@@ -221,6 +303,7 @@ impl Renderer {
             written,
             span,
             passes,
+            frames: None,
         })
     }
 }
@@ -236,10 +319,13 @@ impl Sink {
     fn pixels(&self, target: &Target) -> PixelFormat {
         match (self, target) {
             (Sink::Memory(p), _) => *p,
+            (Sink::Frames { format, .. }, _) => PixelFormat::for_file(*format),
             (_, Target::Crop(_) | Target::Part(_)) => PixelFormat::Float,
-            (Sink::Stdout(_), Target::Image) => PixelFormat::Rgb8,
-            (Sink::File { path, .. }, Target::Image) => crate::framebuffer::ImageFile::of(path)
-                .map_or(PixelFormat::Float, PixelFormat::for_file),
+            (Sink::Stdout(_), Target::Image | Target::Frames(_)) => PixelFormat::Rgb8,
+            (Sink::File { path, .. }, Target::Image | Target::Frames(_)) => {
+                crate::framebuffer::ImageFile::of(path)
+                    .map_or(PixelFormat::Float, PixelFormat::for_file)
+            }
         }
     }
 }

@@ -20,13 +20,16 @@ use crate::scene::{Effects, Scene};
 use crate::timing::Timings;
 use crate::Error;
 
+mod frames;
 mod job;
 mod options;
 mod progressive;
 mod region;
 mod sink;
 
-pub use job::{run, settings_text, Done, Job, Passes, Quiet, Stop, Target, Watch};
+pub use job::{
+    run, settings_text, Done, Frames, FramesDone, Job, Passes, Quiet, Stop, Target, Watch,
+};
 pub use options::{Backend, PixelFormat, RenderOptions};
 use region::Region;
 pub use sink::Sink;

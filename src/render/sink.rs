@@ -27,6 +27,13 @@ pub enum Sink {
     },
     /// PNG on standard output (a crop as its part image).
     Stdout(EncodeOptions),
+    /// An animation's frames, `000.jpg`, `001.jpg`, ... in `dir` (made
+    /// when missing), each written atomically.
+    Frames {
+        dir: PathBuf,
+        format: ImageFile,
+        encode: EncodeOptions,
+    },
 }
 
 impl Sink {
@@ -41,7 +48,15 @@ impl Sink {
     /// Whether the sink can take what `target` makes: the file's type and
     /// its directory, checked before any work.
     pub fn check(&self, target: &Target) -> Result<(), Error> {
+        let frames_only = || {
+            Err(Error::InvalidOption(
+                "frames go to a directory (`Sink::Frames`), and a directory holds frames only"
+                    .into(),
+            ))
+        };
         match (self, target) {
+            (Sink::Frames { dir, .. }, Target::Frames(_)) => check_frame_dir(dir),
+            (Sink::Frames { .. }, _) | (_, Target::Frames(_)) => frames_only(),
             (Sink::Memory(_), _) | (Sink::Stdout(_), Target::Image | Target::Crop(_)) => Ok(()),
             (Sink::Stdout(_), Target::Part(_)) => Err(Error::InvalidOption(
                 "--part writes a part file beside OUT for `glint stitch`; name OUT, not `-`".into(),
@@ -68,7 +83,7 @@ impl Sink {
         timings: &mut Timings,
     ) -> Result<Option<PathBuf>, Error> {
         let (path, encode) = match self {
-            Sink::Memory(_) => return Ok(None),
+            Sink::Memory(_) | Sink::Frames { .. } => return Ok(None),
             Sink::File { path, encode } => (Some(path.as_path()), encode),
             Sink::Stdout(encode) => (None, encode),
         };
@@ -93,7 +108,7 @@ impl Sink {
                 })?;
                 return Ok(Some(file));
             }
-            (Target::Part(_), None) => self.check(target)?,
+            (Target::Part(_), None) | (Target::Frames(_), _) => self.check(target)?,
             (Target::Image, _) => {
                 let kind = match path {
                     Some(p) => ImageFile::of(p)?,
@@ -113,4 +128,23 @@ impl Sink {
         }
         Ok(Some(shown()))
     }
+}
+
+/// A frame directory: not an image's name, and not a file.
+fn check_frame_dir(dir: &Path) -> Result<(), Error> {
+    let bad = |reason: &str| {
+        Err(Error::BadOutput {
+            path: dir.to_path_buf(),
+            reason: format!(
+                "with --frames, the output is a directory for 000.jpg, 001.jpg, ...; {reason}"
+            ),
+        })
+    };
+    if ImageFile::of(dir).is_ok() {
+        return bad("this is an image name");
+    }
+    if dir.exists() && !dir.is_dir() {
+        return bad("this is a file");
+    }
+    Ok(())
 }

@@ -186,14 +186,4 @@ impl RenderArgs {
             ..base
         }
     }
-
-    /// The extension of animation frames.
-    pub fn frame_extension(&self) -> &'static str {
-        match self.frame_format {
-            FrameFormat::Jpg => "jpg",
-            FrameFormat::Png => "png",
-            FrameFormat::Ppm => "ppm",
-            FrameFormat::Exr => "exr",
-        }
-    }
 }

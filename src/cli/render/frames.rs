@@ -4,34 +4,27 @@
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
-use std::sync::Arc;
+use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 use anyhow::Context as _;
-use glint::render::{RenderOptions, Renderer};
-use glint::scene::Scene;
-use glint::write_queue::{Encoded, WriteQueue};
+use glint::output::RenderOutput;
+use glint::render::{Frames, Job, Renderer, Sink, Target, Watch};
 use indicatif::{ProgressBar, ProgressStyle};
 
 use super::RenderArgs;
-use crate::cli::{print_warnings, read_scene, validation_verdict};
-
-/// Threads that encode and write frames: two keep one frame encoding while
-/// the next is handed over; JPEG's strips run on the render's thread pool
-/// beside the render, so more writers add no cores.
-const WRITERS: usize = 2;
+use crate::cli::{print_warnings, read_scene};
 
 /// `--frames N`: checks the range and OUT (the frames' directory, by
-/// default `<scene stem>_frames`), then renders the animation.
+/// default `<scene stem>_frames`) before any work, then renders the
+/// frames with one `Renderer` (device and pipelines built once) as one
+/// job, a progress bar over them.
 pub(super) fn run(
     args: &RenderArgs,
-    frames: u32,
+    count: u32,
     out: &Path,
     defaulted: bool,
 ) -> anyhow::Result<ExitCode> {
-    check_frames(args, frames, out, defaulted)?;
-    let scene = read_scene(&args.scene)?;
-    print_warnings(&scene);
     let dir = if defaulted {
         let stem = match args.scene.to_str() {
             Some("-") => "stdin".into(),
@@ -45,172 +38,126 @@ pub(super) fn run(
     } else {
         out.to_path_buf()
     };
-    let options = RenderOptions {
-        pixels: glint::render::PixelFormat::for_file(args.frame_format.kind()),
-        ..args.options()
+    let part = args
+        .part
+        .as_ref()
+        .map(crate::cli::part::resolve)
+        .transpose()?;
+    let frames = Frames {
+        count,
+        range: args.frame_range,
+        part,
     };
-    animate(&scene, &options, args, frames, &dir)
-}
-
-/// `--frames`: the range fits and OUT can be the frames' directory.
-fn check_frames(args: &RenderArgs, frames: u32, out: &Path, defaulted: bool) -> anyhow::Result<()> {
-    let invalid = |m: String| -> anyhow::Error { glint::Error::InvalidOption(m).into() };
-    if let Some([first, last]) = args.frame_range {
-        if last >= frames {
-            return Err(invalid(format!(
-                "--frame-range {first}-{last} goes past the last frame of --frames {frames} \
-                 (frames count from 0, so the last is {})",
-                frames - 1
-            )));
-        }
-    }
-    if defaulted {
-        return Ok(());
-    }
-    let bad = |reason: String| -> anyhow::Error {
-        glint::Error::BadOutput {
-            path: out.to_path_buf(),
-            reason,
-        }
-        .into()
+    let format = args.frame_format.kind();
+    let sink = Sink::Frames {
+        dir: dir.clone(),
+        format,
+        encode: args.encode_options(),
     };
-    if glint::framebuffer::ImageFile::of(out).is_ok() {
-        return Err(bad(
-            "with --frames, the output is a directory for 000.jpg, 001.jpg, ...; this is an image name".into(),
-        ));
-    }
-    if out.exists() && !out.is_dir() {
-        return Err(bad(
-            "with --frames, the output is a directory for 000.jpg, 001.jpg, ...; this is a file"
-                .into(),
-        ));
-    }
-    Ok(())
-}
-
-/// Renders frames of an animation with one `Renderer` (device and pipelines
-/// built once), a progress bar over frames, each frame written as it is done.
-fn animate(
-    scene: &Scene,
-    options: &RenderOptions,
-    args: &RenderArgs,
-    frames: u32,
-    dir: &Path,
-) -> anyhow::Result<ExitCode> {
-    let share = match &args.part {
-        Some(part) => {
-            let part = crate::cli::part::resolve(part)?;
-            match glint::parts::cut::frame_share(frames, part.index, part.count) {
-                Some(share) => Some((part, share)),
-                None => {
-                    println!(
-                        "{part} has no frames ({} parts share {frames} frames); nothing to do",
-                        part.count
-                    );
-                    return Ok(ExitCode::SUCCESS);
-                }
-            }
+    sink.check(&Target::Frames(frames))?;
+    let Some([first, last]) = frames.share()? else {
+        if let Some(part) = part {
+            println!(
+                "{part} has no frames ({} parts share {count} frames); nothing to do",
+                part.count
+            );
         }
-        None => None,
+        return Ok(ExitCode::SUCCESS);
     };
-    let [first, last] = share.map_or(args.frame_range.unwrap_or([0, frames - 1]), |s| s.1);
-    std::fs::create_dir_all(dir)
-        .with_context(|| format!("creating the frame directory {}", dir.display()))?;
-    if share.is_some() {
-        let settings = format!(
-            "{} frames {frames}",
-            glint::render::settings_text(options, scene)
-        );
-        let digest = glint::parts::stamp::render_digest(scene, &settings);
-        crate::cli::part::claim_frames(dir, &digest)?;
-    }
-    let renderer = Renderer::new(options)?;
+    let scene = read_scene(&args.scene)?;
+    print_warnings(&scene);
+    let options = args.options();
+    let renderer = Renderer::new(&options)?;
     if let Some(note) = renderer.note() {
         eprintln!("note: {note}");
     }
-    let effects = options.effects(scene);
     if !scene.has_motion() {
         eprintln!(
             "note: nothing in {} moves (no `vel:`); every frame is the same image",
             args.scene.display()
         );
     }
-    let digits = (frames - 1).to_string().len().max(3);
-    let ext = args.frame_extension();
-    let bar = ProgressBar::new(u64::from(last - first + 1));
-    bar.set_style(
-        ProgressStyle::with_template(
-            "{spinner} frames [{bar:30}] {pos}/{len} {elapsed} (eta {eta})",
-        )
-        .expect("valid template")
-        .progress_chars("=> "),
-    );
+    let watch = FrameBar::new(u64::from(last - first + 1), args.verbose);
     let start = Instant::now();
-    let mut kept = 0;
-    // Frames are encoded and written on workers while the next renders.
-    let written = bar.clone();
-    let queue = WriteQueue::new(WRITERS, move |_| written.inc(1));
-    let kind = args.frame_format.kind();
-    // Nothing moves: one render and one encode serve every frame.
-    let mut still: Option<Arc<Encoded>> = None;
-    let mut render_timings = glint::timing::Timings::default();
-    for i in first..=last {
-        let path = dir.join(format!("{i:0digits$}.{ext}"));
-        // A requeued task of an array keeps the frames it finished.
-        if share.is_some() && crate::cli::part::frame_done(&path) {
-            kept += 1;
-            bar.inc(1);
-            continue;
-        }
-        let frame = match &still {
-            Some(frame) => frame.clone(),
-            None => {
-                let at = scene.at_time(effects.frame_time(i));
-                let output = match renderer.render(&at, &|_, _| {}) {
-                    Ok(output) => output,
-                    // Frames already handed over are still written whole.
-                    Err(e) => {
-                        let _ = queue.finish();
-                        return Err(anyhow::Error::from(e).context(format!("rendering frame {i}")));
-                    }
-                };
-                validation_verdict(renderer.validation_messages())
-                    .with_context(|| format!("rendering frame {i}"))?;
-                if args.verbose {
-                    bar.suspend(|| eprintln!("frame {i}:\n{}", output.timings));
-                }
-                render_timings.extend(&output.timings);
-                let frame = Encoded::new(output.image, kind, args.encode_options());
-                if !scene.has_motion() {
-                    still = Some(frame.clone());
-                }
-                frame
-            }
-        };
-        queue
-            .push(&frame, path)
-            .with_context(|| format!("writing frame {i}"))?;
-    }
-    let write_timings = queue.finish().context("writing the frames")?;
+    let job = Job::new(&scene).frames(frames);
+    let result = renderer.run(&job, &sink, &watch);
+    let done = result.context("rendering the frames")?;
+    let Some(f) = &done.frames else {
+        unreachable!("a frames job reports its frames");
+    };
     if args.verbose {
-        bar.suspend(|| {
+        watch.bar.suspend(|| {
             eprintln!(
-                "all frames, rendered:\n{render_timings}\nencoded and written on {WRITERS} workers beside the renders:\n{write_timings}"
+                "all frames, rendered:\n{}\nencoded and written on the writers beside the renders:\n{}",
+                f.render_timings, f.write_timings
             )
         });
     }
-    bar.finish_and_clear();
+    watch.bar.finish_and_clear();
+    let shown = |i| frames.path(Path::new(""), i, format);
     println!(
-        "wrote frames {first:0digits$}..{last:0digits$}.{ext} to {} ({}x{}, {}, {:.2} s, {} fps scene time)",
+        "wrote frames {}..{} to {} ({}x{}, {}, {:.2} s, {} fps scene time)",
+        shown(first).with_extension("").display(),
+        shown(last).display(),
         dir.display(),
         args.image.width,
         args.image.height,
         renderer.name(),
         start.elapsed().as_secs_f64(),
-        effects.fps
+        options.effects(&scene).fps
     );
-    if let Some((part, _)) = share {
-        println!("({part} of the frames; {kept} of them were already there and kept)");
+    if let Some(part) = part {
+        println!(
+            "({part} of the frames; {} of them were already there and kept)",
+            f.kept
+        );
     }
     Ok(ExitCode::SUCCESS)
+}
+
+/// Frames done (kept, or written behind the renders) over all of them;
+/// with -v, each frame's timings.
+struct FrameBar {
+    bar: ProgressBar,
+    kept: AtomicU64,
+    verbose: bool,
+}
+
+impl FrameBar {
+    fn new(frames: u64, verbose: bool) -> FrameBar {
+        let bar = ProgressBar::new(frames);
+        bar.set_style(
+            ProgressStyle::with_template(
+                "{spinner} frames [{bar:30}] {pos}/{len} {elapsed} (eta {eta})",
+            )
+            .expect("valid template")
+            .progress_chars("=> "),
+        );
+        FrameBar {
+            bar,
+            kept: AtomicU64::new(0),
+            verbose,
+        }
+    }
+}
+
+impl Watch for FrameBar {
+    fn frame(&self, index: u32, output: Option<&RenderOutput>) {
+        match output {
+            None => {
+                let kept = self.kept.fetch_add(1, Ordering::Relaxed) + 1;
+                self.bar.set_position(kept);
+            }
+            Some(o) if self.verbose => {
+                self.bar
+                    .suspend(|| eprintln!("frame {index}:\n{}", o.timings));
+            }
+            Some(_) => {}
+        }
+    }
+
+    fn frames_written(&self, count: u32) {
+        self.bar
+            .set_position(self.kept.load(Ordering::Relaxed) + u64::from(count));
+    }
 }
