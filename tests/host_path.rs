@@ -22,7 +22,7 @@ use common::cli::{glint, tmp};
 use common::*;
 use glint::encode::EncodeOptions;
 use glint::framebuffer::{Image, ImageFile};
-use glint::render::{Backend, PixelFormat, RenderOptions, Renderer};
+use glint::render::{Backend, Job, PixelFormat, Quiet, RenderOptions, Renderer, Sink};
 use glint::scene::Scene;
 use glint::timing::{READBACK_BYTES, UPLOADED_BYTES};
 
@@ -237,22 +237,25 @@ fn eight_bit_gpu_renders_read_back_four_bytes_a_pixel() {
     assert_eq!(read(&b), 4 * pixels);
     assert_eq!(*b.image.to_rgb8(), *a.image.to_rgb8());
     let crop = glint::region::Crop::parse("13,7,61,50").expect("crop");
-    let a = float
-        .render_crop(&scene, crop, &|_, _| {})
-        .expect("renders");
-    let b = bytes
-        .render_crop(&scene, crop, &|_, _| {})
-        .expect("renders");
-    assert_eq!(read(&b), 4 * 48 * 43);
-    assert_eq!(*b.image.to_rgb8(), *a.image.to_rgb8(), "crop");
+    // A job's pixels come as its sink asks, whatever the renderer's options.
+    let run = |r: &glint::render::Renderer, job: Job, pixels| {
+        r.run(&job, &Sink::Memory(pixels), &Quiet).expect("renders")
+    };
+    let a = run(&float, Job::new(&scene).crop(crop), PixelFormat::Float);
+    let b = run(&float, Job::new(&scene).crop(crop), PixelFormat::Rgb8);
+    assert_eq!(read(&b.output), 4 * 48 * 43);
+    assert_eq!(read(&a.output), 16 * 48 * 43);
+    assert_eq!(*b.output.image.to_rgb8(), *a.output.image.to_rgb8(), "crop");
     for index in 0..3 {
-        let (a, _) = float
-            .render_part(&scene, index, 3, &|_, _| {})
-            .expect("renders");
-        let (b, _) = bytes
-            .render_part(&scene, index, 3, &|_, _| {})
-            .expect("renders");
-        assert_eq!(*b.image.to_rgb8(), *a.image.to_rgb8(), "part {index}");
+        let part = glint::parts::PartOf { index, count: 3 };
+        let a = run(&bytes, Job::new(&scene).part(part), PixelFormat::Float);
+        let b = run(&bytes, Job::new(&scene).part(part), PixelFormat::Rgb8);
+        assert_eq!(a.span, b.span);
+        assert_eq!(
+            *b.output.image.to_rgb8(),
+            *a.output.image.to_rgb8(),
+            "part {index}"
+        );
     }
 }
 

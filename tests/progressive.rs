@@ -11,7 +11,7 @@ use common::*;
 use glint::cpu::Precision;
 use glint::framebuffer::Framebuffer;
 use glint::progressive::{Progressive, StopAt, Stopped};
-use glint::render::{Backend, RenderOptions, Renderer};
+use glint::render::{Backend, Job, PixelFormat, Quiet, RenderOptions, Renderer, Sink};
 use glint::scene::Scene;
 
 const W: u32 = 64;
@@ -71,14 +71,21 @@ fn run(scene: &Scene, r: &Run) -> Progressive {
         adaptive: r.adaptive,
     };
     let renderer = Renderer::new(&options).expect("renderer");
+    let job = Job::new(scene).until(stop);
     let done = renderer
-        .render_progressive(scene, &stop, &mut |_| {})
+        .run(&job, &Sink::Memory(PixelFormat::Float), &Quiet)
         .expect("progressive render");
     assert_eq!(
         done.output.validation_messages, 0,
         "Vulkan validation messages"
     );
-    done
+    let passes = done.passes.expect("a progressive job reports its passes");
+    Progressive {
+        output: done.output,
+        report: passes.report,
+        stopped: passes.stopped,
+        history: passes.history,
+    }
 }
 
 fn rmse(a: &Framebuffer, b: &Framebuffer) -> f64 {

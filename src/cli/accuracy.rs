@@ -8,11 +8,11 @@ use anyhow::Context as _;
 use clap::Args;
 use glint::accuracy::{self, Measured, Target};
 use glint::cpu::Precision;
-use glint::framebuffer::{read_framebuffer, write_framebuffer, Framebuffer};
+use glint::framebuffer::{read_framebuffer, Framebuffer};
 use glint::gpu::DeviceSelector;
 use glint::methods::Methods;
 use glint::progressive::StopAt;
-use glint::render::{Backend, RenderOptions, Renderer};
+use glint::render::{Backend, Job, RenderOptions, Renderer, Sink};
 use glint::scene::Scene;
 use glint::timing::GPU_TIME_NS;
 
@@ -354,9 +354,45 @@ fn reference(
         image_path.display()
     );
     let renderer = Renderer::new(&options)?;
-    let terminal = std::io::IsTerminal::is_terminal(&std::io::stderr());
-    let done = renderer.render_progressive(scene, &stop, &mut |r| {
-        if terminal {
+    let job = Job::new(scene).until(stop);
+    let done = renderer.run(&job, &Sink::file(&image_path), &PassLine::new())?;
+    let Some(passes) = &done.passes else {
+        unreachable!("a progressive job reports its passes");
+    };
+    if PassLine::new().terminal {
+        eprintln!();
+    }
+    let about = format!(
+        "reference: CPU f64, {} passes, {} samples per pixel, estimated RMSE {}, {:.1} s",
+        passes.report.passes,
+        passes.report.samples_per_pixel,
+        passes
+            .report
+            .estimated_rmse
+            .map_or("none".into(), |e| format!("{e:.5}")),
+        passes.report.elapsed.as_secs_f64()
+    );
+    std::fs::write(&key_path, format!("{key}{about}\n"))
+        .with_context(|| format!("writing {}", key_path.display()))?;
+    Ok((done.output.into_framebuffer(), about))
+}
+
+/// The reference's passes, one line rewritten in place on a terminal.
+struct PassLine {
+    terminal: bool,
+}
+
+impl PassLine {
+    fn new() -> PassLine {
+        PassLine {
+            terminal: std::io::IsTerminal::is_terminal(&std::io::stderr()),
+        }
+    }
+}
+
+impl glint::render::Watch for PassLine {
+    fn pass(&self, r: &glint::progressive::PassReport) {
+        if self.terminal {
             eprint!(
                 "\r  pass {}, {} samples per pixel, estimate {}   ",
                 r.passes,
@@ -364,21 +400,5 @@ fn reference(
                 r.estimated_rmse.map_or("-".into(), |e| format!("{e:.5}"))
             );
         }
-    })?;
-    if terminal {
-        eprintln!();
     }
-    write_framebuffer(&done.output.framebuffer(), &image_path, 95)?;
-    let about = format!(
-        "reference: CPU f64, {} passes, {} samples per pixel, estimated RMSE {}, {:.1} s",
-        done.report.passes,
-        done.report.samples_per_pixel,
-        done.report
-            .estimated_rmse
-            .map_or("none".into(), |e| format!("{e:.5}")),
-        done.report.elapsed.as_secs_f64()
-    );
-    std::fs::write(&key_path, format!("{key}{about}\n"))
-        .with_context(|| format!("writing {}", key_path.display()))?;
-    Ok((done.output.into_framebuffer(), about))
 }

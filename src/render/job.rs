@@ -170,6 +170,8 @@ pub struct Passes {
     /// The last pass's report.
     pub report: PassReport,
     pub stopped: Stopped,
+    /// Every pass's report, in order.
+    pub history: Vec<PassReport>,
 }
 
 /// A job carried out.
@@ -274,6 +276,7 @@ impl Renderer {
                 let passes = Passes {
                     report: done.report,
                     stopped: done.stopped,
+                    history: done.history,
                 };
                 (done.output, None, Some(passes))
             }

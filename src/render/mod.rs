@@ -15,7 +15,6 @@ use crate::memory::{self, MemoryNeed};
 pub use crate::output::RenderOutput;
 use crate::parts::cut::{Costs, Span};
 use crate::probe::{PathRecord, ProbeImage};
-use crate::region::Crop;
 use crate::scene::{Effects, Scene};
 use crate::timing::Timings;
 use crate::Error;
@@ -312,32 +311,10 @@ impl Renderer {
         self.render_region(scene, Region::All, progress)
     }
 
-    /// Renders only the pixels inside `crop` (the others are 0), each with
-    /// the value a full render gives it.
-    pub fn render_crop(
-        &self,
-        scene: &Scene,
-        crop: Crop,
-        progress: &(dyn Fn(u64, u64) + Sync),
-    ) -> Result<RenderOutput, Error> {
-        crop.check(self.options.width, self.options.height)?;
-        self.render_region(scene, Region::Crop(crop), progress)
-    }
-
     /// Part `index` of `count` (`parts::cut`, balanced by a cost estimate
     /// from a CPU probe of a few pixels), each pixel with the value a full
     /// render gives it; returns its pixels too. Every task of an array
     /// cuts alike, from the same scene and settings.
-    pub fn render_part(
-        &self,
-        scene: &Scene,
-        index: u32,
-        count: u32,
-        progress: &(dyn Fn(u64, u64) + Sync),
-    ) -> Result<(RenderOutput, Span), Error> {
-        self.render_part_as(scene, index, count, self.options.pixels, progress)
-    }
-
     fn render_part_as(
         &self,
         scene: &Scene,

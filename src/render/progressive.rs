@@ -18,7 +18,7 @@ impl Renderer {
     /// Renders `scene` in passes of its own samples per pixel, each with a
     /// seed of its own, until `stop` says so (`progressive`); `on_pass`
     /// hears of every pass. The BVH and the packed scene are built once.
-    pub fn render_progressive(
+    pub(super) fn render_progressive(
         &self,
         scene: &Scene,
         stop: &StopAt,
