@@ -3,7 +3,7 @@
 //! Vulkan device (if any) and the CPU reference in f32 and f64. The same
 //! measurement as `glint bench --f64`; see src/bench.rs.
 
-use glint::bench::{default_scenes, run, BenchOptions};
+use glint::suites::bench::{default_scenes, run, BenchOptions};
 
 fn main() {
     // `cargo bench` runs from the package root.

@@ -8,7 +8,7 @@
 
 use std::process::ExitCode;
 
-use glint::check::{image_test, ImageTest};
+use glint::suites::check::{image_test, ImageTest};
 
 /// Two spheres over a ground of two triangles with per-vertex normals, a
 /// point light casting one sphere's shadow on the other and the ground.

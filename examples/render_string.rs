@@ -3,7 +3,7 @@
 //!
 //! `cargo run --release --example render_string`
 
-use glint::framebuffer::Image;
+use glint::images::framebuffer::Image;
 use glint::render::{Job, PixelFormat, Quiet, RenderOptions, Renderer, Sink};
 
 /// One red sphere in front of the camera, lit from above and behind it.

@@ -43,38 +43,29 @@
 //! encode::encode, framebuffer::write_bytes; compare::compare_images
 //! ```
 
-pub mod accuracy;
-pub mod bench;
 pub mod bvh;
 pub mod camera;
-pub mod check;
-pub mod compare;
 pub mod cpu;
-pub mod encode;
 mod error;
 pub mod features;
-pub mod framebuffer;
 pub mod gpu;
-pub mod hard;
 pub mod hash;
+pub mod images;
 pub mod info;
 pub mod input;
 pub mod layout;
-pub mod lights_on_surfaces;
+pub mod material;
 pub mod memory;
 pub mod mesh;
 pub mod methods;
-pub mod output;
+pub mod number;
 pub mod parts;
-pub mod plot;
 pub mod probe;
-pub mod progressive;
-pub mod region;
 pub mod render;
 pub mod scene;
+pub mod suites;
 pub mod timing;
 pub mod units;
 pub mod view;
-pub mod write_queue;
 
 pub use error::Error;

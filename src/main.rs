@@ -21,7 +21,7 @@ fn main() -> ExitCode {
     // ends the process without running drops, so the handler removes them.
     // 130 = 128 + SIGINT, the shell's convention.
     let _ = ctrlc::set_handler(|| {
-        glint::framebuffer::remove_partial_files();
+        glint::images::framebuffer::remove_partial_files();
         std::process::exit(130);
     });
     let args = cli::Cli::parse();

@@ -8,7 +8,7 @@ mod common;
 use common::*;
 use glam::DVec3;
 use glint::cpu::Precision;
-use glint::framebuffer::Framebuffer;
+use glint::images::framebuffer::Framebuffer;
 use glint::scene::Scene;
 
 /// Renders on the CPU in f32 and f64, and on the GPU when there is one.

@@ -8,10 +8,10 @@ use common::*;
 use glam::DVec3;
 use glint::bvh::Bvh;
 use glint::camera::Camera;
-use glint::compare::compare_framebuffers;
 use glint::cpu::Precision;
-use glint::framebuffer::Framebuffer;
 use glint::gpu::GpuRenderOptions;
+use glint::images::compare::compare_framebuffers;
+use glint::images::framebuffer::Framebuffer;
 use glint::layout::{GpuBvhNode, GpuScene, BVH_MAX_DEPTH, SPHERE_BIT};
 use glint::scene::{Bounds, Light, Material, Scene, Sphere, Triangle, Vertex};
 

@@ -12,7 +12,7 @@ use std::sync::Arc;
 use std::time::Duration;
 
 use common::*;
-use glint::progressive::{StopAt, Stopped};
+use glint::render::passes::{StopAt, Stopped};
 use glint::render::{Backend, RenderOptions, Renderer};
 use glint::scene::Scene;
 use glint::Error;

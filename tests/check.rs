@@ -168,27 +168,27 @@ fn an_image_test_of_ones_own_scene_passes_and_fails_visibly() {
          light pos: 2 3 0 col: 1 1 1\n",
     );
     let dir = tempfile::tempdir().expect("temp dir");
-    let test = glint::check::ImageTest {
+    let test = glint::suites::check::ImageTest {
         out: Some(dir.path().join("failures")),
-        ..glint::check::ImageTest::new("ball", 96, 72)
+        ..glint::suites::check::ImageTest::new("ball", 96, 72)
     };
-    let v = glint::check::image_test(&scene, &test).expect("renders on both");
+    let v = glint::suites::check::image_test(&scene, &test).expect("renders on both");
     assert!(v.passed(), "{:?}", v.failure);
     assert!(v.device.starts_with("GPU"), "{}", v.device);
     assert!(v.written.is_empty());
-    let strict = glint::check::ImageTest {
-        tolerance: glint::check::Tolerance {
+    let strict = glint::suites::check::ImageTest {
+        tolerance: glint::suites::check::Tolerance {
             f32_flip: -1.0,
-            ..glint::check::Tolerance::TIGHT
+            ..glint::suites::check::Tolerance::TIGHT
         },
         ..test
     };
-    let v = glint::check::image_test(&scene, &strict).expect("renders on both");
+    let v = glint::suites::check::image_test(&scene, &strict).expect("renders on both");
     let why = v.failure.as_deref().unwrap_or_default();
     assert!(why.contains("FLIP") && why.contains("f32 twin"), "{why}");
     assert_eq!(v.written.len(), 3);
     for path in &v.written {
-        let image = glint::framebuffer::open(path).expect("a readable image");
+        let image = glint::images::framebuffer::open(path).expect("a readable image");
         assert_eq!(
             (image.width(), image.height()),
             (96, 72),

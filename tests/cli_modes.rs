@@ -60,7 +60,7 @@ fn hard_scenes_are_written_and_render_with_naive_methods_too() {
     let written = std::fs::read_dir(d.path().join("hard"))
         .expect("dir")
         .count();
-    assert_eq!(written, glint::hard::cases().len());
+    assert_eq!(written, glint::suites::hard::cases().len());
     let o = glint(
         &[
             "render",

@@ -6,10 +6,10 @@
 mod common;
 
 use common::*;
-use glint::compare::compare_framebuffers;
 use glint::cpu::Precision;
 use glint::features::Features;
-use glint::framebuffer::Framebuffer;
+use glint::images::compare::compare_framebuffers;
+use glint::images::framebuffer::Framebuffer;
 use glint::scene::{Effects, LightShape, Scene};
 
 fn effect_scene(name: &str) -> Scene {

@@ -7,9 +7,9 @@ mod common;
 use std::path::PathBuf;
 
 use common::*;
-use glint::compare::compare_images;
 use glint::cpu::Precision;
-use glint::framebuffer::{read_image, write_image, Framebuffer};
+use glint::images::compare::compare_images;
+use glint::images::framebuffer::{read_image, write_image, Framebuffer};
 use glint::scene::Scene;
 
 const W: u32 = 640;

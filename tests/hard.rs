@@ -9,12 +9,12 @@ mod common;
 use common::{gpu, repo_path};
 use glint::bvh::Bvh;
 use glint::camera::Camera;
-use glint::compare::compare_framebuffers;
 use glint::cpu::CpuOptions;
 use glint::cpu::Precision;
-use glint::hard::metrics::{failing_pixels, lone_pixels};
-use glint::hard::{self, count, Case, Metric, Runner};
+use glint::images::compare::compare_framebuffers;
 use glint::methods::Methods;
+use glint::suites::hard::metrics::{failing_pixels, lone_pixels};
+use glint::suites::hard::{self, count, Case, Metric, Runner};
 
 fn case(name: &str) -> Case {
     hard::cases()

@@ -20,8 +20,8 @@ use std::path::Path;
 
 use common::cli::{glint, tmp};
 use common::*;
-use glint::encode::EncodeOptions;
-use glint::framebuffer::{Image, ImageFile};
+use glint::images::encode::EncodeOptions;
+use glint::images::framebuffer::{Image, ImageFile};
 use glint::render::{Backend, Job, PixelFormat, Quiet, RenderOptions, Renderer, Sink};
 use glint::scene::Scene;
 use glint::timing::{READBACK_BYTES, UPLOADED_BYTES};
@@ -184,7 +184,7 @@ fn pipelined_frames_equal_single_renders() {
 }
 
 fn read(path: &Path) -> image::RgbImage {
-    glint::framebuffer::read_image(path).expect("reads")
+    glint::images::framebuffer::read_image(path).expect("reads")
 }
 
 /// The second and later frames of a GPU animation upload what changed (the
@@ -236,7 +236,7 @@ fn eight_bit_gpu_renders_read_back_four_bytes_a_pixel() {
     assert_eq!(read(&a), 16 * pixels);
     assert_eq!(read(&b), 4 * pixels);
     assert_eq!(*b.image.to_rgb8(), *a.image.to_rgb8());
-    let crop = glint::region::Crop::parse("13,7,61,50").expect("crop");
+    let crop = glint::parts::crop::Crop::parse("13,7,61,50").expect("crop");
     // A job's pixels come as its sink asks, whatever the renderer's options.
     let run = |r: &glint::render::Renderer, job: Job, pixels| {
         r.run(&job, &Sink::Memory(pixels), &Quiet).expect("renders")

@@ -373,6 +373,49 @@ fn the_module_graph_has_no_circles() {
     assert!(found.is_empty(), "{report}");
 }
 
+/// The graph of `src/`'s top-level modules (a folder with everything in
+/// it, or a file), each edge some file of one using some file of another.
+fn top_level(g: &Graph) -> Graph {
+    let top = |m: &Vec<String>| m.first().map(|t| vec![t.clone()]);
+    let mut out = Graph {
+        modules: BTreeMap::new(),
+        edges: BTreeMap::new(),
+    };
+    for (m, file) in &g.modules {
+        if let Some(t) = top(m) {
+            out.modules.insert(t.clone(), file.clone());
+            out.edges.entry(t).or_default();
+        }
+    }
+    for (m, to) in &g.edges {
+        let Some(from) = top(m) else { continue };
+        for w in to {
+            if let Some(w) = top(w).filter(|w| *w != from) {
+                out.edges.entry(from.clone()).or_default().insert(w);
+            }
+        }
+    }
+    out
+}
+
+/// Folders import one way too: `scene` uses `mesh` (its `mesh` blocks) and
+/// `mesh` nothing of `scene` (the material and number parsing both use sit
+/// below them); `bvh` holds the lights-on-surfaces rule it builds.
+#[test]
+fn top_level_modules_import_one_way() {
+    let g = top_level(&graph());
+    assert!(g.modules.len() > 10, "{:?}", g.modules.keys());
+    let found = circles(&g);
+    let report: Vec<String> = found
+        .iter()
+        .map(|comp| comp.iter().map(|m| name(m)).collect::<Vec<_>>().join(", "))
+        .collect();
+    assert!(
+        found.is_empty(),
+        "circles among top-level modules: {report:?}"
+    );
+}
+
 /// The checker finds what it is meant to find: a planted circle.
 #[test]
 fn the_circle_check_sees_a_planted_circle() {

@@ -5,10 +5,10 @@
 mod common;
 
 use common::*;
-use glint::framebuffer::{Image, ImageFile};
+use glint::images::framebuffer::{Image, ImageFile};
+use glint::parts::crop::Crop;
 use glint::parts::{existing, Existing, PartOf};
-use glint::progressive::StopAt;
-use glint::region::Crop;
+use glint::render::passes::StopAt;
 use glint::render::{Backend, Frames, Job, PixelFormat, Quiet, RenderOptions, Renderer, Sink};
 
 const SCENE: &str = "3\namb: 0.1 0.1 0.1\n\
@@ -47,7 +47,9 @@ fn memory_and_file_sinks_hold_the_same_pixels() {
     let done = r.run(&job, &Sink::file(&path), &Quiet).expect("writes");
     assert_eq!(done.written.as_deref(), Some(path.as_path()));
     assert!(done.output.timings.phase("encode").is_some());
-    let read = glint::framebuffer::open(&path).expect("readable").to_rgb8();
+    let read = glint::images::framebuffer::open(&path)
+        .expect("readable")
+        .to_rgb8();
     assert_eq!(&read, rgb8);
 }
 
@@ -179,7 +181,9 @@ fn a_frames_job_writes_its_range() {
         .collect();
     names.sort();
     assert_eq!(names, ["0007.png", "0008.png", "0009.png"]);
-    let first = glint::framebuffer::open(&dir.path().join("anim/0007.png")).expect("a frame");
-    let last = glint::framebuffer::open(&dir.path().join("anim/0009.png")).expect("a frame");
+    let first =
+        glint::images::framebuffer::open(&dir.path().join("anim/0007.png")).expect("a frame");
+    let last =
+        glint::images::framebuffer::open(&dir.path().join("anim/0009.png")).expect("a frame");
     assert_eq!(first.to_rgb8(), last.to_rgb8());
 }

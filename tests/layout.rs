@@ -320,9 +320,9 @@ fn shared_constants_match() {
     for (name, rust) in pairs {
         assert_eq!(f32_const(&m, name).to_bits(), rust.to_bits(), "{name}");
     }
-    let band = glint::lights_on_surfaces::TANGENT_BAND;
+    let band = glint::bvh::lights_on_surfaces::TANGENT_BAND;
     assert_eq!(f64::from(f32_const(&m, "TANGENT_BAND")), band);
-    let on_surface = glint::lights_on_surfaces::ON_SURFACE;
+    let on_surface = glint::bvh::lights_on_surfaces::ON_SURFACE;
     assert_eq!(f64::from(f32_const(&m, "ON_SURFACE")), on_surface);
 }
 

@@ -9,8 +9,8 @@ use common::*;
 use glint::bvh::Bvh;
 use glint::camera::Camera;
 use glint::features::Features;
-use glint::framebuffer::Framebuffer;
 use glint::gpu::{GpuError, GpuRenderOptions};
+use glint::images::framebuffer::Framebuffer;
 use glint::layout::GpuScene;
 use glint::scene::{Effects, Scene};
 

@@ -437,7 +437,8 @@ fn cameras_see_what_the_scene_moved_the_other_way_shows() {
         fov: 60.0,
     });
     let seen = render(&world);
-    let cmp = glint::compare::compare_framebuffers(&seen, &classic, 1.0).expect("same size");
+    let cmp =
+        glint::images::compare::compare_framebuffers(&seen, &classic, 1.0).expect("same size");
     assert_within(
         "moved camera",
         &seen,
@@ -455,7 +456,8 @@ fn cameras_see_what_the_scene_moved_the_other_way_shows() {
         let on_gpu = glint::render::render(&world, &options, &|_, _| {})
             .expect("renders")
             .into_framebuffer();
-        let cmp = glint::compare::compare_framebuffers(&on_gpu, &seen, 1.0).expect("same size");
+        let cmp =
+            glint::images::compare::compare_framebuffers(&on_gpu, &seen, 1.0).expect("same size");
         assert_within(
             "moved camera, GPU vs CPU",
             &on_gpu,

@@ -150,7 +150,7 @@ fn bad_and_partial_normals_are_recomputed() {
     assert_eq!(m.faces[0].normals, Some([mesh::SMOOTH, mesh::SMOOTH, 2]));
     assert_eq!(m.faces[1].normals, None);
     // Every normal the renderer gets is unit: the smooth one is (0, 0, 1).
-    let tris = m.triangles(None, |p| p, |n| n, |_| 0);
+    let tris = glint::scene::mesh::triangles(&m, None, |p| p, |n| n, |_| 0);
     for v in tris.iter().flat_map(|t| t.vertices) {
         assert!((v.normal - DVec3::Z).length() < 1e-12, "{:?}", v.normal);
     }

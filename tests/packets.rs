@@ -144,7 +144,7 @@ fn own_and_effect_scenes_render_the_same_in_packets() {
 /// change which hit is kept by more than a tie.
 #[test]
 fn naive_renders_take_no_packets() {
-    let case = &glint::hard::cases()[0];
+    let case = &glint::suites::hard::cases()[0];
     let bvh = Bvh::build(&case.scene);
     let options = CpuOptions {
         methods: Methods::Naive,
@@ -168,7 +168,7 @@ fn naive_renders_take_no_packets() {
 #[test]
 fn hard_cases_render_the_same_in_packets() {
     let mut on_surfaces = 0;
-    for case in glint::hard::cases() {
+    for case in glint::suites::hard::cases() {
         on_surfaces += usize::from(
             !Bvh::build(&case.scene)
                 .surfaces_at_lights

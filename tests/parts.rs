@@ -47,8 +47,8 @@ fn parts_equal_whole(dir: &Path, n: u32, ext: &str, extra: &[&str]) {
     }
     let count = n.to_string();
     ok(&glint(&["stitch", &joined, "--parts", &count], dir));
-    let a = glint::framebuffer::read_framebuffer(&dir.join(&whole)).expect("whole");
-    let b = glint::framebuffer::read_framebuffer(&dir.join(&joined)).expect("joined");
+    let a = glint::images::framebuffer::read_framebuffer(&dir.join(&whole)).expect("whole");
+    let b = glint::images::framebuffer::read_framebuffer(&dir.join(&joined)).expect("joined");
     assert_eq!(a, b, "{n} parts of {ext} with {extra:?}");
 }
 

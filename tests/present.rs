@@ -10,13 +10,13 @@
 mod common;
 
 use common::*;
-use glint::framebuffer::to_u8;
 use glint::gpu::present::DeviceMean;
-use glint::progressive::StopAt;
+use glint::images::framebuffer::to_u8;
+use glint::render::passes::StopAt;
 use glint::render::{Backend, RenderOptions, Renderer};
 
 /// Most levels apart and how many pixels differ at all.
-fn apart(device: &[[u8; 3]], host: &glint::framebuffer::Framebuffer) -> (u8, usize) {
+fn apart(device: &[[u8; 3]], host: &glint::images::framebuffer::Framebuffer) -> (u8, usize) {
     assert_eq!(device.len(), host.pixels.len(), "same size");
     let mut most = 0;
     let mut differ = 0;

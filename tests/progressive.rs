@@ -9,8 +9,8 @@ use std::time::Duration;
 
 use common::*;
 use glint::cpu::Precision;
-use glint::framebuffer::Framebuffer;
-use glint::progressive::{Progressive, StopAt, Stopped};
+use glint::images::framebuffer::Framebuffer;
+use glint::render::passes::{Progressive, StopAt, Stopped};
 use glint::render::{Backend, Job, PixelFormat, Quiet, RenderOptions, Renderer, Sink};
 use glint::scene::Scene;
 

@@ -10,8 +10,8 @@ use common::*;
 use glint::bvh::Bvh;
 use glint::camera::Camera;
 use glint::features::Features;
-use glint::framebuffer::Framebuffer;
 use glint::gpu::{GpuError, GpuRenderOptions};
+use glint::images::framebuffer::Framebuffer;
 use glint::layout::GpuScene;
 use glint::scene::{Effects, Scene, Settings};
 use glint::timing::Timings;
@@ -251,7 +251,8 @@ fn a_cut_pass_is_detected_and_redone() {
         );
     }
     let cpu = render_cpu(&scene, 16, 8, glint::cpu::Precision::F32, WHITE);
-    let cmp = glint::compare::compare_framebuffers(&cpu, &gpu, THRESHOLD_LEVELS).expect("size");
+    let cmp =
+        glint::images::compare::compare_framebuffers(&cpu, &gpu, THRESHOLD_LEVELS).expect("size");
     assert_within("workload-cut-retry", &gpu, &cpu, &cmp, 1);
 }
 
@@ -454,7 +455,8 @@ fn big_lists_split_over_bindings_render_the_same_image() {
         assert_eq!(a.map(f32::to_bits), b.map(f32::to_bits), "pixel {i}");
     }
     let cpu = render_cpu(&scene, 32, 24, glint::cpu::Precision::F32, WHITE);
-    let cmp = glint::compare::compare_framebuffers(&cpu, &split, THRESHOLD_LEVELS).expect("size");
+    let cmp =
+        glint::images::compare::compare_framebuffers(&cpu, &split, THRESHOLD_LEVELS).expect("size");
     assert_within("workload-split-lists", &split, &cpu, &cmp, 1);
     // 512 triangles a chunk: 7 chunks would be needed.
     match render_passes(&scene, 32, 24, |o| {

@@ -10,6 +10,7 @@
 //! independently), so it contains both the f64 geometry and its f32
 //! rounding; node boxes are unions of those, exact in f32.
 
+pub mod lights_on_surfaces;
 pub mod node;
 pub mod wide;
 
@@ -249,7 +250,8 @@ impl Bvh {
             bvh.depth = depth;
         }
         bvh.prim_refs = prims.iter().map(|p| p.reference).collect();
-        bvh.surfaces_at_lights = crate::lights_on_surfaces::find(scene, &bvh.nodes, &bvh.prim_refs);
+        bvh.surfaces_at_lights =
+            crate::bvh::lights_on_surfaces::find(scene, &bvh.nodes, &bvh.prim_refs);
         bvh
     }
 }

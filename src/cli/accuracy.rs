@@ -6,14 +6,14 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
 use clap::Args;
-use glint::accuracy::{self, Measured, Target};
 use glint::cpu::Precision;
-use glint::framebuffer::{read_framebuffer, Framebuffer};
 use glint::gpu::DeviceSelector;
+use glint::images::framebuffer::{read_framebuffer, Framebuffer};
 use glint::methods::Methods;
-use glint::progressive::StopAt;
+use glint::render::passes::StopAt;
 use glint::render::{Backend, Job, RenderOptions, Renderer, Sink};
 use glint::scene::Scene;
+use glint::suites::accuracy::{self, Measured, Target};
 use glint::timing::GPU_TIME_NS;
 
 use super::EffectArgs;
@@ -265,7 +265,7 @@ pub fn run(args: AccuracyArgs) -> anyhow::Result<ExitCode> {
             .map_or("scene".into(), |n| n.to_string_lossy())
     );
     write("accuracy.svg", accuracy::svg(&rows, &title))?;
-    glint::framebuffer::write_image(
+    glint::images::framebuffer::write_image(
         &accuracy::png_image(&rows, &title),
         &args.out.join("accuracy.png"),
         95,
@@ -391,7 +391,7 @@ impl PassLine {
 }
 
 impl glint::render::Watch for PassLine {
-    fn pass(&self, r: &glint::progressive::PassReport) {
+    fn pass(&self, r: &glint::render::passes::PassReport) {
         if self.terminal {
             eprint!(
                 "\r  pass {}, {} samples per pixel, estimate {}   ",

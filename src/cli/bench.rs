@@ -3,8 +3,8 @@ use std::process::ExitCode;
 
 use anyhow::Context as _;
 use clap::{Args, Subcommand};
-use glint::bench::{default_scenes, run as run_bench, BenchOptions};
 use glint::gpu::DeviceSelector;
+use glint::suites::bench::{default_scenes, run as run_bench, BenchOptions};
 
 #[derive(Args, Debug)]
 #[command(args_conflicts_with_subcommands = true)]
@@ -156,7 +156,7 @@ pub struct HardArgs {
     #[arg(long, value_name = "N", default_value_t = 0)]
     pixels: usize,
     /// Write the suite's scene files into DIR (default scenes/hard) and exit.
-    #[arg(long, value_name = "DIR", num_args = 0..=1, default_missing_value = glint::hard::SCENE_DIR)]
+    #[arg(long, value_name = "DIR", num_args = 0..=1, default_missing_value = glint::suites::hard::SCENE_DIR)]
     write_scenes: Option<PathBuf>,
 }
 
@@ -190,18 +190,18 @@ pub fn run(args: BenchArgs) -> anyhow::Result<ExitCode> {
 
 fn run_hard(args: HardArgs) -> anyhow::Result<ExitCode> {
     if let Some(dir) = args.write_scenes {
-        let written = glint::hard::write_scenes(&dir)?;
+        let written = glint::suites::hard::write_scenes(&dir)?;
         println!("wrote {written} scenes to {}", dir.display());
         return Ok(ExitCode::SUCCESS);
     }
-    let options = glint::bench::HardOptions {
+    let options = glint::suites::bench::HardOptions {
         gpu: !args.no_gpu,
         device: args.device.as_deref().map(DeviceSelector::parse),
         repeat: args.repeat as usize,
         timing: !args.no_timing,
         examples: args.pixels,
     };
-    let report = glint::bench::run_hard(&options, &mut |line| eprintln!("{line}"))?;
+    let report = glint::suites::bench::run_hard(&options, &mut |line| eprintln!("{line}"))?;
     println!("{}", report.markdown);
     if report.robust_failures > 0 {
         eprintln!(
@@ -215,7 +215,7 @@ fn run_hard(args: HardArgs) -> anyhow::Result<ExitCode> {
 
 fn run_specialize(args: SpecializeArgs) -> anyhow::Result<ExitCode> {
     let scenes = if args.scenes.is_empty() {
-        glint::bench::specialize_scenes(&mut |note| eprintln!("note: {note}"))
+        glint::suites::bench::specialize_scenes(&mut |note| eprintln!("note: {note}"))
     } else {
         args.scenes
     };
@@ -224,14 +224,14 @@ fn run_specialize(args: SpecializeArgs) -> anyhow::Result<ExitCode> {
         "no scenes to benchmark: name some scene files"
     );
     anyhow::ensure!(args.width > 0 && args.height > 0, "the image needs pixels");
-    let options = glint::bench::SpecializeOptions {
+    let options = glint::suites::bench::SpecializeOptions {
         scenes,
         width: args.width,
         height: args.height,
         repeat: args.repeat as usize,
         device: args.device.as_deref().map(DeviceSelector::parse),
     };
-    let table = glint::bench::run_specialize(&options, &mut |line| eprintln!("{line}"))?;
+    let table = glint::suites::bench::run_specialize(&options, &mut |line| eprintln!("{line}"))?;
     println!("{table}");
     Ok(ExitCode::SUCCESS)
 }
@@ -248,7 +248,7 @@ fn run_embree(args: EmbreeArgs) -> anyhow::Result<ExitCode> {
     }
     args.timed.check()?;
     let scenes = scenes_or_default(args.scenes)?;
-    let options = glint::bench::EmbreeOptions {
+    let options = glint::suites::bench::EmbreeOptions {
         harness: args.harness,
         scenes,
         width: args.timed.width,
@@ -260,7 +260,7 @@ fn run_embree(args: EmbreeArgs) -> anyhow::Result<ExitCode> {
         device: args.timed.device(),
         uniform_lists: !args.timed.storage_lists,
     };
-    let report = glint::bench::run_embree(&options, &mut |line| eprintln!("{line}"))?;
+    let report = glint::suites::bench::run_embree(&options, &mut |line| eprintln!("{line}"))?;
     println!("{}", report.to_markdown());
     Ok(ExitCode::SUCCESS)
 }
@@ -291,7 +291,7 @@ fn run_scenes(args: SceneArgs) -> anyhow::Result<ExitCode> {
             ))
             .into());
         }
-        glint::framebuffer::check_writable(plot)?;
+        glint::images::framebuffer::check_writable(plot)?;
     }
     let report = run_bench(&options, &mut |line| eprintln!("{line}"))?;
     println!("{}", report.to_markdown());
@@ -303,7 +303,7 @@ fn run_scenes(args: SceneArgs) -> anyhow::Result<ExitCode> {
             std::fs::write(path, report.plot().to_svg())
                 .with_context(|| format!("cannot write {}", path.display()))?;
         } else {
-            glint::framebuffer::write_image(&report.plot().to_image(2.0), path, 95)?;
+            glint::images::framebuffer::write_image(&report.plot().to_image(2.0), path, 95)?;
         }
         eprintln!("wrote {}", path.display());
     }

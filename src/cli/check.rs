@@ -6,8 +6,8 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use anyhow::Context as _;
-use glint::check::{check_device, report, CheckOptions, Level};
 use glint::gpu::{DeviceSelector, GpuError};
+use glint::suites::check::{check_device, report, CheckOptions, Level};
 
 #[derive(clap::Args, Debug)]
 pub struct CheckArgs {
@@ -70,9 +70,9 @@ pub fn run(args: CheckArgs) -> anyhow::Result<ExitCode> {
     };
     let mut reports = Vec::new();
     for device in &chosen {
-        let r = glint::check::DeviceReport {
+        let r = glint::suites::check::DeviceReport {
             device: device.clone(),
-            limits: glint::check::device_limits(device)?,
+            limits: glint::suites::check::device_limits(device)?,
             cases: Vec::new(),
             total: Default::default(),
             pipelines: (0, 0),

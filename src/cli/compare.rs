@@ -2,8 +2,8 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::Args;
-use glint::compare::{compare_framebuffers, compare_images};
-use glint::framebuffer::{read_framebuffer, read_image, write_image, ImageFile};
+use glint::images::compare::{compare_framebuffers, compare_images};
+use glint::images::framebuffer::{read_framebuffer, read_image, write_image, ImageFile};
 
 #[derive(Args, Debug)]
 pub struct CompareArgs {

@@ -41,7 +41,7 @@ pub fn run(args: ConvertArgs) -> anyhow::Result<ExitCode> {
         ))
         .into());
     }
-    glint::framebuffer::check_writable(&args.out)?;
+    glint::images::framebuffer::check_writable(&args.out)?;
     let scene = if Format::of(&args.input).is_some() {
         model_as_scene(&args)?
     } else {
@@ -53,7 +53,7 @@ pub fn run(args: ConvertArgs) -> anyhow::Result<ExitCode> {
         let mtl_name = mtl
             .file_name()
             .map_or("out.mtl".into(), |n| n.to_string_lossy().into_owned());
-        let (obj_text, mtl_text, info) = glint::mesh::write_obj(&scene, &mtl_name);
+        let (obj_text, mtl_text, info) = glint::scene::write_obj(&scene, &mtl_name);
         write(&args.out, &obj_text)?;
         write(&mtl, &mtl_text)?;
         println!(
@@ -136,7 +136,13 @@ fn model_as_scene(args: &ConvertArgs) -> Result<glint::scene::Scene, glint::Erro
         ..Default::default()
     };
     let mut ids = glint::scene::MaterialIds::default();
-    scene.triangles = mesh.triangles(material, |p| p, |n| n, |m| ids.id(&mut scene.materials, m));
+    scene.triangles = glint::scene::mesh::triangles(
+        &mesh,
+        material,
+        |p| p,
+        |n| n,
+        |m| ids.id(&mut scene.materials, m),
+    );
     scene.meshes.push(glint::scene::MeshInfo {
         file: args.input.display().to_string(),
         triangles: scene.triangles.len(),

@@ -7,7 +7,7 @@ use std::process::ExitCode;
 use std::time::{Duration, Instant};
 
 use anyhow::Context as _;
-use glint::progressive::{PassReport, StopAt};
+use glint::render::passes::{PassReport, StopAt};
 use glint::render::{Job, Renderer, Sink, Stop, Target, Watch};
 use indicatif::{ProgressBar, ProgressStyle};
 

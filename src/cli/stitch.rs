@@ -2,7 +2,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 
-use glint::framebuffer::{check_output, write_framebuffer, ImageFile};
+use glint::images::framebuffer::{check_output, write_framebuffer, ImageFile};
 
 #[derive(clap::Args, Debug)]
 pub struct StitchArgs {
@@ -21,7 +21,7 @@ pub struct StitchArgs {
     #[arg(long, value_name = "SECONDS", requires = "parts", value_parser = super::values::parse_seconds)]
     wait: Option<f64>,
     /// JPEG quality (1-100).
-    #[arg(long, default_value_t = glint::framebuffer::DEFAULT_JPEG_QUALITY, value_parser = clap::value_parser!(u8).range(1..=100))]
+    #[arg(long, default_value_t = glint::images::framebuffer::DEFAULT_JPEG_QUALITY, value_parser = clap::value_parser!(u8).range(1..=100))]
     quality: u8,
 }
 
@@ -48,7 +48,7 @@ pub fn run(args: StitchArgs) -> anyhow::Result<ExitCode> {
     };
     let vetted = glint::parts::vet(&paths, count)?;
     let parts: Vec<&std::path::Path> = paths.iter().map(PathBuf::as_path).collect();
-    let s = glint::region::stitch(&parts)?;
+    let s = glint::parts::crop::stitch(&parts)?;
     if ImageFile::of(&args.out)?.is_float() && !s.float {
         eprintln!(
             "note: some parts are 8-bit, so {} holds their 8-bit values; render every part as .exr to keep floats",

@@ -5,7 +5,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 use std::time::Duration;
 
-use glint::progressive::StopAt;
+use glint::render::passes::StopAt;
 use glint::render::RenderOptions;
 
 use super::values::{parse_error_target, parse_seconds};
@@ -48,7 +48,7 @@ pub fn run(args: ViewArgs) -> anyhow::Result<ExitCode> {
     let scene = super::read_scene(&args.scene)?;
     super::print_warnings(&scene);
     if let Some(out) = &args.out {
-        glint::framebuffer::check_output(out)?;
+        glint::images::framebuffer::check_output(out)?;
     }
     let render = RenderOptions {
         tile: args.tile,

@@ -18,7 +18,7 @@ use rayon::prelude::*;
 
 use crate::bvh::Bvh;
 use crate::camera::Camera;
-use crate::framebuffer::Framebuffer;
+use crate::images::framebuffer::Framebuffer;
 use crate::probe::{PathLight, PathRecord, PathSurface, ProbeImage, ProbePixel};
 use crate::scene::Scene;
 use trace::{

@@ -26,7 +26,7 @@ use gltf::Semantic;
 use super::build::{Builder, Loc};
 use super::report::Tolerance;
 use super::{Mesh, MeshError, Refs};
-use crate::scene::model::Material;
+use crate::material::Material;
 
 fn error(path: &Path, at: impl Into<String>, message: impl Into<String>) -> MeshError {
     MeshError {

@@ -21,16 +21,14 @@ pub mod report;
 mod source;
 mod stl;
 mod text;
-mod write;
 
 use std::fmt;
 use std::path::{Path, PathBuf};
 
 use glam::DVec3;
 
-use crate::scene::model::Material;
+use crate::material::Material;
 pub use report::{Report, Tolerance, Warning};
-pub use write::{write_obj, ObjWritten};
 
 /// A face corner's normal index meaning "the smooth normal": the file's
 /// normal there is unusable (not finite, no length).
@@ -252,66 +250,6 @@ impl Mesh {
             .collect()
     }
 
-    /// The mesh as scene triangles, each vertex placed by `place` and its
-    /// normal turned by `turn` (then normalized as the classic parser
-    /// does, `unit`). A face's material is `material` if given, else the
-    /// file's for it, else `DEFAULT_MATERIAL` (with vertex colours: black
-    /// with no highlight, the colour being the diffuse one); callers warn
-    /// when the default is used (`missing_material`). Normals are the
-    /// file's, else `smooth_normals`. `material_id` gives a material's
-    /// index in the scene's table (`Scene::add_material`, `MaterialIds`).
-    pub fn triangles(
-        &self,
-        material: Option<Material>,
-        place: impl Fn(DVec3) -> DVec3,
-        turn: impl Fn(DVec3) -> DVec3,
-        mut material_id: impl FnMut(Material) -> u32,
-    ) -> Vec<crate::scene::model::Triangle> {
-        use crate::scene::model::{Triangle, Vertex};
-        let smooth = if self.needs_smooth_normals() {
-            self.smooth_normals()
-        } else {
-            Vec::new()
-        };
-        self.faces
-            .iter()
-            .map(|f| {
-                let base = material
-                    .or_else(|| f.material.map(|m| self.materials[m as usize]))
-                    .unwrap_or(if self.colors.is_empty() {
-                        DEFAULT_MATERIAL
-                    } else {
-                        // Vertex colours give the diffuse colour.
-                        Material {
-                            kd: DVec3::ZERO,
-                            ks: DVec3::ZERO,
-                            shininess: 1.0,
-                        }
-                    });
-                let vertices = [0, 1, 2].map(|k| {
-                    let p = f.positions[k] as usize;
-                    let n = match f.normals {
-                        Some(ns) if ns[k] != SMOOTH => self.normals[ns[k] as usize],
-                        _ => smooth[p],
-                    };
-                    let mut m = base;
-                    if let Some(c) = self.colors.get(p) {
-                        m.kd = *c;
-                    }
-                    Vertex {
-                        position: place(self.positions[p]),
-                        normal: unit(turn(n)),
-                        material: material_id(m),
-                    }
-                });
-                Triangle {
-                    vertices,
-                    velocity: DVec3::ZERO,
-                }
-            })
-            .collect()
-    }
-
     /// Whether some corner takes the smooth normal: its face has no
     /// normals from the file, or that normal is unusable.
     pub fn needs_smooth_normals(&self) -> bool {
@@ -324,28 +262,5 @@ impl Mesh {
     /// file has no vertex colours and no material for it.
     pub fn missing_material(&self) -> bool {
         self.colors.is_empty() && self.faces.iter().any(|f| f.material.is_none())
-    }
-
-    /// The bounds of the vertices faces use (a file's unused or
-    /// non-finite vertices do not count).
-    pub fn bounds(&self) -> crate::scene::model::Bounds {
-        self.faces
-            .iter()
-            .flat_map(|f| f.positions)
-            .fold(crate::scene::model::Bounds::EMPTY, |b, p| {
-                b.grow(self.positions[p as usize])
-            })
-    }
-}
-
-/// A normal as the classic parser keeps one: as written when it is unit to
-/// within 1e-3 (so a mesh and the same triangles written as classic blocks
-/// render bit for bit alike), else normalized; zero stays zero (the flat
-/// normal is used there).
-fn unit(n: DVec3) -> DVec3 {
-    if (n.length() - 1.0).abs() <= 1e-3 {
-        n
-    } else {
-        n.try_normalize().unwrap_or(DVec3::ZERO)
     }
 }

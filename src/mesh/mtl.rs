@@ -15,7 +15,7 @@ use glam::DVec3;
 use super::report::{Report, Tolerance};
 use super::text::{show, Text};
 use super::MeshError;
-use crate::scene::model::Material;
+use crate::material::Material;
 
 pub fn read(
     src: &[u8],
@@ -57,7 +57,7 @@ pub fn read(
             let values: Vec<&[u8]> = std::iter::from_fn(|| t.token_on_line()).take(4).collect();
             let parsed: Vec<Option<f64>> = values
                 .iter()
-                .map(|v| crate::scene::number::parse_f64(v).filter(|x| x.is_finite()))
+                .map(|v| crate::number::parse_f64(v).filter(|x| x.is_finite()))
                 .collect();
             let bad = |report: &mut Report, why: String| {
                 report.warn(

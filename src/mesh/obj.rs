@@ -36,7 +36,7 @@ pub fn parse(src: &[u8], path: &Path, refs: Refs) -> Result<Mesh, MeshError> {
                     // `nan` and `inf` are numbers too: their faces are
                     // dropped by `build`, with a warning.
                     if let Some(v) = tok
-                        .and_then(crate::scene::number::parse_f64)
+                        .and_then(crate::number::parse_f64)
                         .filter(|v| !v.is_finite())
                     {
                         *c = v;

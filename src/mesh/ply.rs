@@ -98,7 +98,7 @@ impl Reader<'_> {
                 if !any {
                     return t.number(tok, what);
                 }
-                match tok.and_then(crate::scene::number::parse_f64) {
+                match tok.and_then(crate::number::parse_f64) {
                     Some(v) => Ok(v),
                     None if tok.is_some() => Ok(f64::NAN),
                     None => t.number(tok, what),

@@ -138,8 +138,7 @@ impl<'a> Text<'a> {
     /// A number token that may be anything, for values that are repaired
     /// rather than refused (normals): NaN where it is not a number.
     pub fn number_or_nan(tok: Option<&[u8]>) -> f64 {
-        tok.and_then(crate::scene::number::parse_f64)
-            .unwrap_or(f64::NAN)
+        tok.and_then(crate::number::parse_f64).unwrap_or(f64::NAN)
     }
 
     /// A finite number token, or an error saying what was expected.
@@ -147,7 +146,7 @@ impl<'a> Text<'a> {
         let Some(t) = tok else {
             return Err(self.error(format!("expected {what}, found the end of the line")));
         };
-        match crate::scene::number::parse_f64(t) {
+        match crate::number::parse_f64(t) {
             Some(v) if v.is_finite() && v.abs() <= f64::from(f32::MAX) => Ok(v),
             _ => Err(self.error(format!("expected {what}, found {}", show(t)))),
         }
@@ -171,7 +170,7 @@ impl<'a> Text<'a> {
         let ok = |v: f64| v.is_finite() && v.abs() <= f64::from(f32::MAX);
         let prefix = (1..t.len().min(64))
             .rev()
-            .find_map(|n| crate::scene::number::parse_f64(&t[..n]).filter(|&v| ok(v)));
+            .find_map(|n| crate::number::parse_f64(&t[..n]).filter(|&v| ok(v)));
         match prefix {
             Some(v) => Ok((v, true)),
             None => self.number(Some(t), what).map(|v| (v, false)),

@@ -55,5 +55,5 @@ pub fn claim_frames(dir: &Path, digest: &str) -> Result<(), Error> {
 /// Whether a frame is already there, whole: frames are written to a
 /// temporary file and renamed, so one under its name decoded in full is done.
 pub fn frame_done(path: &Path) -> bool {
-    path.exists() && crate::framebuffer::open(path).is_ok()
+    path.exists() && crate::images::framebuffer::open(path).is_ok()
 }

@@ -3,12 +3,15 @@
 //! `glint render --part I/N` (or `slurm/N`, `k8s/N`, `env/N`) renders that
 //! share, and `glint stitch OUT --parts N` joins the shares bit for bit.
 //!
+//! - `crop`: `--crop` rectangles, a part as a full-size image with alpha,
+//!   and stitching such images into one.
 //! - `cut`: which pixels (or frames) each part holds, balanced by cost.
 //! - `stamp`: what a part file records of itself, and its digest of the render.
 //! - `frames`: an animation's frame directory shared by the tasks of an array.
 //! - here: the index's source, part file names, the requeue check, and
 //!   finding, waiting for and vetting the parts of a stitch.
 
+pub mod crop;
 pub mod cut;
 pub mod frames;
 pub mod stamp;
@@ -17,7 +20,7 @@ use std::fmt;
 use std::path::{Path, PathBuf};
 use std::time::{Duration, Instant};
 
-use crate::framebuffer::ImageFile;
+use crate::images::framebuffer::ImageFile;
 use crate::Error;
 use stamp::Stamp;
 
@@ -192,7 +195,7 @@ pub fn existing(path: &Path, digest: &str, part: PartOf) -> Existing {
     };
     match stamp::stamp_of(&bytes, path) {
         Ok(Some(s)) if s.render == digest && s.index == part.index && s.count == part.count => {
-            match crate::framebuffer::decode_image(&bytes, path) {
+            match crate::images::framebuffer::decode_image(&bytes, path) {
                 Ok(_) => Existing::Done(s),
                 Err(e) => Existing::Other(format!("it does not decode ({e})")),
             }

@@ -10,7 +10,7 @@ use std::path::Path;
 use xxhash_rust::xxh3::Xxh3;
 
 use super::cut::Span;
-use crate::framebuffer::{Framebuffer, ImageFile};
+use crate::images::framebuffer::{Framebuffer, ImageFile};
 use crate::scene::Scene;
 use crate::Error;
 
@@ -144,13 +144,13 @@ pub fn write_part(fb: &Framebuffer, stamp: &Stamp, path: &Path) -> Result<(), Er
                 .enumerate()
                 .flat_map(|(i, p)| match inside(i) {
                     true => {
-                        let [r, g, b] = p.map(crate::framebuffer::to_u8);
+                        let [r, g, b] = p.map(crate::images::framebuffer::to_u8);
                         [r, g, b, 255]
                     }
                     false => [0; 4],
                 })
                 .collect();
-            crate::framebuffer::write_atomically(path, |sink| {
+            crate::images::framebuffer::write_atomically(path, |sink| {
                 let mut e = png::Encoder::new(sink, w, h);
                 e.set_color(png::ColorType::Rgba);
                 e.set_depth(png::BitDepth::Eight);
@@ -193,7 +193,7 @@ pub fn write_part(fb: &Framebuffer, stamp: &Stamp, path: &Path) -> Result<(), Er
                     path: path.to_path_buf(),
                     error: io(&e),
                 })?;
-            crate::framebuffer::write_atomically(path, |sink| sink.write_all(buf.get_ref()))
+            crate::images::framebuffer::write_atomically(path, |sink| sink.write_all(buf.get_ref()))
         }
         _ => Err(Error::BadOutput {
             path: path.to_path_buf(),
@@ -293,7 +293,7 @@ mod tests {
                 assert_eq!(read_stamp(p).expect("read"), Some(stamp("aa", i as u32)));
             }
             let refs: Vec<&Path> = paths.iter().map(|p| p.as_path()).collect();
-            let joined = crate::region::stitch(&refs).expect("stitch");
+            let joined = crate::parts::crop::stitch(&refs).expect("stitch");
             assert_eq!(joined.image.to_rgb8(), fb.to_rgb8());
             assert!(crate::parts::vet(&paths, Some(2)).is_ok());
             write_part(&fb, &stamp("bb", 1), &paths[1]).expect("write");
@@ -306,7 +306,7 @@ mod tests {
             assert!(crate::parts::vet(&swapped, Some(2)).is_err());
         }
         let plain = dir.path().join("plain.png");
-        crate::framebuffer::write_framebuffer(&fb, &plain, 90).expect("write");
+        crate::images::framebuffer::write_framebuffer(&fb, &plain, 90).expect("write");
         assert_eq!(read_stamp(&plain).expect("read"), None);
         assert_eq!(
             Stamp::parse("render x\npart 3 of 2\npixels 0-1 of 1x1\n"),

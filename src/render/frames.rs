@@ -3,64 +3,24 @@
 //! on a worker while the next renders (`write_queue`); a scene with no
 //! motion is rendered and encoded once and written N times.
 
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::sync::atomic::{AtomicU32, Ordering};
 use std::sync::Arc;
 
-use super::job::{Done, FramesDone, Job, Watch};
-use super::{PixelFormat, Region, Renderer};
-use crate::encode::EncodeOptions;
-use crate::framebuffer::{Framebuffer, Image, ImageFile};
-use crate::output::RenderOutput;
-use crate::parts::PartOf;
-use crate::write_queue::{Encoded, WriteQueue};
+use super::job::{settings_text, Done, Frames, FramesDone, Job, Watch};
+use super::options::PixelFormat;
+use super::output::RenderOutput;
+use super::region::Region;
+use super::renderer::Renderer;
+use crate::images::encode::EncodeOptions;
+use crate::images::framebuffer::{Framebuffer, Image, ImageFile};
+use crate::images::write_queue::{Encoded, WriteQueue};
 use crate::Error;
 
 /// Threads that encode and write frames: two keep one frame encoding while
 /// the next is handed over; JPEG's strips run on the render's thread pool
 /// beside the render, so more writers add no cores.
 const WRITERS: usize = 2;
-
-/// Which frames of an animation a job renders (frame i shows the scene at
-/// time i / fps).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct Frames {
-    /// Frames in the whole animation; the file names have as many digits
-    /// as the last one's number (three at least).
-    pub count: u32,
-    /// Only frames FIRST to LAST (inclusive, counted from 0).
-    pub range: Option<[u32; 2]>,
-    /// One task's share of the frames (`parts::cut::frame_share`): the
-    /// directory is claimed for this render, and frames already there
-    /// whole are kept, so a requeued task does only what is missing.
-    pub part: Option<PartOf>,
-}
-
-impl Frames {
-    /// The frames this job renders, or `None` for a part that has none.
-    pub fn share(&self) -> Result<Option<[u32; 2]>, Error> {
-        let last = self
-            .count
-            .checked_sub(1)
-            .ok_or_else(|| Error::InvalidOption("an animation has one frame at least".into()))?;
-        match (self.part, self.range) {
-            (Some(p), _) => Ok(crate::parts::cut::frame_share(self.count, p.index, p.count)),
-            (None, Some([first, end])) if first <= end && end <= last => Ok(Some([first, end])),
-            (None, Some([first, end])) => Err(Error::InvalidOption(format!(
-                "--frame-range {first}-{end} goes past the last frame of --frames {} \
-                 (frames count from 0, so the last is {last})",
-                self.count
-            ))),
-            (None, None) => Ok(Some([0, last])),
-        }
-    }
-
-    /// Frame `i`'s file in `dir`.
-    pub fn path(&self, dir: &Path, i: u32, format: ImageFile) -> PathBuf {
-        let digits = self.count.saturating_sub(1).to_string().len().max(3);
-        dir.join(format!("{i:0digits$}.{}", format.extension()))
-    }
-}
 
 impl Renderer {
     /// `Renderer::run` of a `Target::Frames` job into `dir`.
@@ -86,7 +46,7 @@ impl Renderer {
                 scene,
                 &format!(
                     "{} frames {}",
-                    super::settings_text(&self.options, scene),
+                    settings_text(&self.options, scene),
                     frames.count
                 ),
             );

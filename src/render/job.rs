@@ -3,19 +3,17 @@
 //! it out. Every command that renders an image builds a `Job`; a project of
 //! its own can do the same (`examples/`).
 
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
-use super::{PixelFormat, Region, RenderOptions, Renderer};
-use crate::output::RenderOutput;
+use super::options::RenderOptions;
+use super::output::RenderOutput;
+use super::passes::{PassReport, StopAt, Stopped};
+use crate::images::framebuffer::ImageFile;
+use crate::parts::crop::Crop;
 use crate::parts::cut::Span;
 use crate::parts::PartOf;
-use crate::progressive::{PassReport, StopAt, Stopped};
-use crate::region::Crop;
 use crate::scene::Scene;
 use crate::Error;
-
-pub use super::frames::Frames;
-pub use super::sink::Sink;
 
 /// Which pixels of the image a job renders.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -102,7 +100,7 @@ impl<'a> Job<'a> {
     }
 
     /// Settings a job cannot have, found before any work.
-    fn check(&self, options: &RenderOptions) -> Result<(), Error> {
+    pub(super) fn check(&self, options: &RenderOptions) -> Result<(), Error> {
         let (w, h) = (options.width, options.height);
         match (self.target, self.stop) {
             (Target::Crop(c), _) => c.check(w, h)?,
@@ -213,11 +211,13 @@ impl Done {
     /// the frames are in their files.
     pub(super) fn frames(renderer: String, frames: FramesDone) -> Done {
         let output = RenderOutput {
-            image: crate::framebuffer::Image::Float(crate::framebuffer::Framebuffer {
-                width: 0,
-                height: 0,
-                pixels: Vec::new(),
-            }),
+            image: crate::images::framebuffer::Image::Float(
+                crate::images::framebuffer::Framebuffer {
+                    width: 0,
+                    height: 0,
+                    pixels: Vec::new(),
+                },
+            ),
             timings: frames.render_timings.clone(),
             renderer,
             note: None,
@@ -236,99 +236,43 @@ impl Done {
     }
 }
 
-impl Renderer {
-    /// Carries out `job`, handing the image to `sink`. Nothing is written
-    /// when the Vulkan validation layer reported messages: the image may be
-    /// wrong (`Error::Validation`).
-    pub fn run(&self, job: &Job, sink: &Sink, watch: &dyn Watch) -> Result<Done, Error> {
-        job.check(&self.options)?;
-        sink.check(&job.target)?;
-        if let (
-            Target::Frames(frames),
-            Sink::Frames {
-                dir,
-                format,
-                encode,
-            },
-        ) = (job.target, sink)
-        {
-            return self.run_frames(job, frames, dir, *format, encode, watch);
+/// Which frames of an animation a job renders (frame i shows the scene at
+/// time i / fps).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Frames {
+    /// Frames in the whole animation; the file names have as many digits
+    /// as the last one's number (three at least).
+    pub count: u32,
+    /// Only frames FIRST to LAST (inclusive, counted from 0).
+    pub range: Option<[u32; 2]>,
+    /// One task's share of the frames (`parts::cut::frame_share`): the
+    /// directory is claimed for this render, and frames already there
+    /// whole are kept, so a requeued task does only what is missing.
+    pub part: Option<PartOf>,
+}
+
+impl Frames {
+    /// The frames this job renders, or `None` for a part that has none.
+    pub fn share(&self) -> Result<Option<[u32; 2]>, Error> {
+        let last = self
+            .count
+            .checked_sub(1)
+            .ok_or_else(|| Error::InvalidOption("an animation has one frame at least".into()))?;
+        match (self.part, self.range) {
+            (Some(p), _) => Ok(crate::parts::cut::frame_share(self.count, p.index, p.count)),
+            (None, Some([first, end])) if first <= end && end <= last => Ok(Some([first, end])),
+            (None, Some([first, end])) => Err(Error::InvalidOption(format!(
+                "--frame-range {first}-{end} goes past the last frame of --frames {} \
+                 (frames count from 0, so the last is {last})",
+                self.count
+            ))),
+            (None, None) => Ok(Some([0, last])),
         }
-        let pixels = sink.pixels(&job.target);
-        let progress = |done: u64, total: u64| watch.progress(done, total);
-        let (mut output, span, passes) = match (job.target, job.stop) {
-            (Target::Image, Stop::Once) => {
-                let out = self.render_region_as(job.scene, Region::All, pixels, &progress)?;
-                (out, None, None)
-            }
-            (Target::Crop(c), _) => {
-                let out = self.render_region_as(job.scene, Region::Crop(c), pixels, &progress)?;
-                (out, None, None)
-            }
-            (Target::Part(p), _) => {
-                let (out, span) =
-                    self.render_part_as(job.scene, p.index, p.count, pixels, &progress)?;
-                (out, Some(span), None)
-            }
-            (Target::Frames(_), _) => unreachable!("`Sink::check` pairs frames with their sink"),
-            (Target::Image, Stop::Passes(stop)) => {
-                let done = self.render_progressive(job.scene, &stop, &mut |r| watch.pass(r))?;
-                let passes = Passes {
-                    report: done.report,
-                    stopped: done.stopped,
-                    history: done.history,
-                };
-                (done.output, None, Some(passes))
-            }
-        };
-        if output.validation_messages > 0 {
-            return Err(Error::Validation(output.validation_messages));
-        }
-        let stamp = match (job.target, span) {
-            (Target::Part(p), Some(span)) => Some(crate::parts::stamp::Stamp {
-                render: job.digest(&self.options),
-                index: p.index,
-                count: p.count,
-                span,
-                height: self.options.height,
-                renderer: output.renderer.clone(),
-            }),
-            _ => None,
-        };
-        let written = sink.write(
-            &output.image,
-            &job.target,
-            stamp.as_ref(),
-            &mut output.timings,
-        )?;
-        Ok(Done {
-            output,
-            written,
-            span,
-            passes,
-            frames: None,
-        })
     }
-}
 
-/// Carries out `job` on a `Renderer` set up for this call only.
-pub fn run(options: &RenderOptions, job: &Job, sink: &Sink) -> Result<Done, Error> {
-    Renderer::new(options)?.run(job, sink, &Quiet)
-}
-
-impl Sink {
-    /// What the render should hand back for this sink: the file's own
-    /// pixels, or floats where a part file keeps them.
-    fn pixels(&self, target: &Target) -> PixelFormat {
-        match (self, target) {
-            (Sink::Memory(p), _) => *p,
-            (Sink::Frames { format, .. }, _) => PixelFormat::for_file(*format),
-            (_, Target::Crop(_) | Target::Part(_)) => PixelFormat::Float,
-            (Sink::Stdout(_), Target::Image | Target::Frames(_)) => PixelFormat::Rgb8,
-            (Sink::File { path, .. }, Target::Image | Target::Frames(_)) => {
-                crate::framebuffer::ImageFile::of(path)
-                    .map_or(PixelFormat::Float, PixelFormat::for_file)
-            }
-        }
+    /// Frame `i`'s file in `dir`.
+    pub fn path(&self, dir: &Path, i: u32, format: ImageFile) -> PathBuf {
+        let digits = self.count.saturating_sub(1).to_string().len().max(3);
+        dir.join(format!("{i:0digits$}.{}", format.extension()))
     }
 }

@@ -70,7 +70,7 @@ pub enum PixelFormat {
 
 impl PixelFormat {
     /// What a file of `kind` holds.
-    pub fn for_file(kind: crate::framebuffer::ImageFile) -> PixelFormat {
+    pub fn for_file(kind: crate::images::framebuffer::ImageFile) -> PixelFormat {
         if kind.is_float() {
             PixelFormat::Float
         } else {

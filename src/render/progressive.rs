@@ -1,15 +1,18 @@
 //! A `Renderer`'s progressive renders: passes of the scene's own samples
-//! per pixel until a stop rule (`crate::progressive`) or whoever watches
+//! per pixel until a stop rule (`crate::render::passes`) or whoever watches
 //! the passes says so.
 
 use std::time::Instant;
 
-use super::{PixelFormat, Region, RenderOutput, Renderer};
-use crate::framebuffer::Image;
-use crate::progressive::{
+use super::options::PixelFormat;
+use super::output::RenderOutput;
+use super::passes::{
     Accumulator, Blocks, PassReport, Progressive, StopAt, Stopped, ADAPTIVE_FIRST_PASSES,
     MIN_PASSES_FOR_TARGET,
 };
+use super::region::Region;
+use super::renderer::Renderer;
+use crate::images::framebuffer::Image;
 use crate::scene::Scene;
 use crate::timing::Timings;
 use crate::Error;
@@ -41,7 +44,7 @@ impl Renderer {
         &self,
         scene: &Scene,
         stop: &StopAt,
-        on_pass: &mut dyn FnMut(&PassReport, &crate::progressive::Accumulator) -> bool,
+        on_pass: &mut dyn FnMut(&PassReport, &crate::render::passes::Accumulator) -> bool,
     ) -> Result<Progressive, Error> {
         let start = Instant::now();
         let scene = &*scene.in_view_space();

@@ -1,13 +1,13 @@
 //! Which pixels a render computes: all, the active blocks of a progressive
 //! pass, a `--crop` rectangle or a `--part` span.
 
+use super::passes::Blocks;
+use crate::parts::crop::Crop;
 use crate::parts::cut::Span;
-use crate::progressive::Blocks;
-use crate::region::Crop;
 
 /// Which pixels a render computes; the others are left 0.
 #[derive(Clone, Copy)]
-pub(super) enum Region<'a> {
+pub(crate) enum Region<'a> {
     All,
     /// The active blocks of a progressive render.
     Blocks(&'a Blocks),
@@ -17,7 +17,7 @@ pub(super) enum Region<'a> {
 }
 
 impl Region<'_> {
-    pub(super) fn pixels(&self, width: u32, height: u32) -> u64 {
+    pub(crate) fn pixels(&self, width: u32, height: u32) -> u64 {
         match self {
             Region::All => u64::from(width) * u64::from(height),
             Region::Blocks(b) => b
@@ -31,7 +31,7 @@ impl Region<'_> {
     }
 
     /// Rows holding every pixel the region keeps.
-    pub(super) fn rows(&self, height: u32) -> std::ops::Range<u32> {
+    pub(crate) fn rows(&self, height: u32) -> std::ops::Range<u32> {
         match self {
             Region::All | Region::Blocks(_) => 0..height,
             Region::Crop(c) => c.y0..c.y1,
@@ -42,7 +42,7 @@ impl Region<'_> {
         }
     }
 
-    pub(super) fn keeps(&self, x: u32, y: u32) -> bool {
+    pub(crate) fn keeps(&self, x: u32, y: u32) -> bool {
         match self {
             Region::All => true,
             Region::Blocks(b) => b.is_active(x, y),

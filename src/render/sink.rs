@@ -5,9 +5,9 @@
 use std::path::{Path, PathBuf};
 
 use super::job::Target;
-use super::PixelFormat;
-use crate::encode::EncodeOptions;
-use crate::framebuffer::{check_output, Image, ImageFile};
+use super::options::PixelFormat;
+use crate::images::encode::EncodeOptions;
+use crate::images::framebuffer::{check_output, Image, ImageFile};
 use crate::parts::stamp::Stamp;
 use crate::timing::Timings;
 use crate::Error;
@@ -63,7 +63,7 @@ impl Sink {
             )),
             (Sink::File { path, .. }, Target::Image) => check_output(path),
             (Sink::File { path, .. }, Target::Crop(_)) => {
-                crate::region::check_part_format(path)?;
+                crate::parts::crop::check_part_format(path)?;
                 check_output(path)
             }
             (Sink::File { path, .. }, Target::Part(p)) => {
@@ -91,11 +91,11 @@ impl Sink {
         match (target, path) {
             (Target::Crop(c), Some(p)) => {
                 let fb = image.to_float();
-                timings.time("write", || crate::region::write_part(&fb, c, p))?;
+                timings.time("write", || crate::parts::crop::write_part(&fb, c, p))?;
             }
             (Target::Crop(c), None) => {
                 let fb = image.to_float();
-                timings.time("write", || crate::region::write_part_to_stdout(&fb, c))?;
+                timings.time("write", || crate::parts::crop::write_part_to_stdout(&fb, c))?;
             }
             (Target::Part(p), Some(out)) => {
                 let stamp = stamp.ok_or_else(|| {
@@ -121,8 +121,8 @@ impl Sink {
                         error: std::io::Error::other(e),
                     })?;
                 timings.time("write", || match path {
-                    Some(p) => crate::framebuffer::write_bytes(p, &bytes),
-                    None => crate::framebuffer::write_bytes_to_stdout(&bytes),
+                    Some(p) => crate::images::framebuffer::write_bytes(p, &bytes),
+                    None => crate::images::framebuffer::write_bytes_to_stdout(&bytes),
                 })?;
             }
         }
@@ -147,4 +147,21 @@ fn check_frame_dir(dir: &Path) -> Result<(), Error> {
         return bad("this is a file");
     }
     Ok(())
+}
+
+impl Sink {
+    /// What the render should hand back for this sink: the file's own
+    /// pixels, or floats where a part file keeps them.
+    pub(super) fn pixels(&self, target: &Target) -> PixelFormat {
+        match (self, target) {
+            (Sink::Memory(p), _) => *p,
+            (Sink::Frames { format, .. }, _) => PixelFormat::for_file(*format),
+            (_, Target::Crop(_) | Target::Part(_)) => PixelFormat::Float,
+            (Sink::Stdout(_), Target::Image | Target::Frames(_)) => PixelFormat::Rgb8,
+            (Sink::File { path, .. }, Target::Image | Target::Frames(_)) => {
+                crate::images::framebuffer::ImageFile::of(path)
+                    .map_or(PixelFormat::Float, PixelFormat::for_file)
+            }
+        }
+    }
 }

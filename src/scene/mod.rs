@@ -1,11 +1,12 @@
 //! Scenes: the model (`model`), the classic format's parser (`parse`, its
 //! objects in `objects`, reading in windows in `windows`, messages in
-//! `diagnostic`), render settings (`settings`) and writing a scene back
-//! (`write`).
+//! `diagnostic`), render settings (`settings`), a model file's mesh as
+//! triangles (`mesh`) and writing a scene back (`write`, and as OBJ in `obj`).
 
 mod diagnostic;
+pub mod mesh;
 pub(crate) mod model;
-pub(crate) mod number;
+mod obj;
 mod objects;
 mod parse;
 mod settings;
@@ -15,6 +16,7 @@ mod write;
 
 pub use diagnostic::{Diagnostic, ParseError};
 pub use model::*;
+pub use obj::{write_obj, ObjWritten};
 pub use settings::{Effects, Settings};
 pub use space::SpaceMap;
 pub use windows::{parse_reader, parse_scene, read_scene};

@@ -9,21 +9,7 @@ use glam::DVec3;
 pub use super::diagnostic::Diagnostic;
 pub use super::settings::{Effects, Settings};
 
-/// Diffuse and specular reflectance with a Phong exponent, per channel.
-#[derive(Clone, Copy, Debug, PartialEq)]
-pub struct Material {
-    pub kd: DVec3,
-    pub ks: DVec3,
-    pub shininess: f64,
-}
-
-impl Material {
-    /// Its exact bits, for finding equal materials (`-0.0` and `0.0` apart).
-    pub fn key(&self) -> [u64; 7] {
-        let (d, s) = (self.kd, self.ks);
-        [d.x, d.y, d.z, s.x, s.y, s.z, self.shininess].map(f64::to_bits)
-    }
-}
+pub use crate::material::Material;
 
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Sphere {

@@ -265,7 +265,8 @@ impl<'a> Parser<'a> {
             self.warn(diagnostic);
         }
         let state = &mut self.state;
-        let triangles = mesh.triangles(
+        let triangles = super::mesh::triangles(
+            &mesh,
             material,
             |p| transforms.iter().fold(p, |p, t| t.point(p)),
             |n| transforms.iter().fold(n, |n, t| t.direction(n)),

@@ -412,7 +412,7 @@ impl<'a> Parser<'a> {
         // also gives the messages).
         self.skip_space();
         let rest = &self.src[self.pos..];
-        if let Some((value, n)) = super::number::parse_prefix(rest) {
+        if let Some((value, n)) = crate::number::parse_prefix(rest) {
             let ends = rest.get(n).map_or(self.at_eof, u8::is_ascii_whitespace);
             if ends && value.abs() <= f64::from(f32::MAX) {
                 let tok = self.token_at(n);
@@ -421,7 +421,7 @@ impl<'a> Parser<'a> {
             }
         }
         let tok = self.require_with(|| format!("a number ({what})"))?;
-        let value = super::number::parse_f64(tok.text);
+        let value = crate::number::parse_f64(tok.text);
         match value {
             // The GPU computes in f32: a larger value would arrive there as
             // infinity.

@@ -7,9 +7,9 @@
 //! note says why.
 
 use super::renderers::Renderers;
-use crate::framebuffer::Framebuffer;
 use crate::gpu::present::Presenter;
 use crate::gpu::{Context, ContextOptions, GpuError, WindowTarget};
+use crate::images::framebuffer::Framebuffer;
 use crate::render::{Backend, Renderer};
 
 /// Who draws the window.

@@ -31,8 +31,8 @@ use winit::event_loop::{ActiveEventLoop, EventLoop};
 use winit::keyboard::{Key, ModifiersState, NamedKey};
 use winit::window::{Window, WindowId};
 
-use crate::framebuffer::{to_u8, write_framebuffer, Framebuffer};
-use crate::progressive::{PassReport, StopAt, Stopped};
+use crate::images::framebuffer::{to_u8, write_framebuffer, Framebuffer};
+use crate::render::passes::{PassReport, StopAt, Stopped};
 use crate::render::RenderOptions;
 use crate::scene::Scene;
 use crate::Error;

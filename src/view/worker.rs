@@ -12,10 +12,10 @@ use std::time::{Duration, Instant};
 
 use super::device::{Drawing, Screen};
 use super::renderers::{heavier_than_preview, Key, Renderers};
-use crate::compare::compare_framebuffers;
-use crate::framebuffer::Framebuffer;
 use crate::gpu::WindowTarget;
-use crate::progressive::{PassReport, StopAt, Stopped};
+use crate::images::compare::compare_framebuffers;
+use crate::images::framebuffer::Framebuffer;
+use crate::render::passes::{PassReport, StopAt, Stopped};
 use crate::render::{Backend, RenderOptions, Renderer};
 use crate::scene::{CameraSpec, Scene};
 use crate::timing::{CLOSEST_RAYS, SHADOW_RAYS};

@@ -9,15 +9,15 @@ use std::sync::{Mutex, OnceLock};
 
 use glint::bvh::Bvh;
 use glint::camera::Camera;
-use glint::compare::Comparison;
 use glint::cpu::{CpuOptions, Precision};
 use glint::features::Features;
-use glint::framebuffer::{write_image, Framebuffer};
 use glint::gpu::{Context, ContextOptions, GpuRenderOptions, GpuRenderer};
+use glint::images::compare::Comparison;
+use glint::images::framebuffer::{write_image, Framebuffer};
 use glint::layout::GpuScene;
 use glint::scene::{parse_scene, Effects, Scene};
 
-pub const CLASSIC: [&str; 5] = glint::bench::CLASSIC_SCENES;
+pub const CLASSIC: [&str; 5] = glint::suites::bench::CLASSIC_SCENES;
 
 /// Prints past libtest's output capture (which only intercepts the print
 /// macros), so that a skip is visible in a plain `cargo test` run.
@@ -37,7 +37,7 @@ pub fn repo_path(rel: &str) -> PathBuf {
 /// `../shared/scenes/classic`, or `None` with a visible message when absent
 /// (a user's clone has none). In CI its absence is a failure.
 pub fn classic_dir() -> Option<PathBuf> {
-    let dir = repo_path(glint::bench::CLASSIC_DIR);
+    let dir = repo_path(glint::suites::bench::CLASSIC_DIR);
     if dir.is_dir() {
         return Some(dir);
     }
@@ -289,8 +289,8 @@ pub fn assert_backends_agree(name: &str, scene: &Scene, w: u32, h: u32, min_allo
         return;
     };
     assert_finite(name, &gpu);
-    let cmp =
-        glint::compare::compare_framebuffers(&cpu, &gpu, THRESHOLD_LEVELS).expect("same size");
+    let cmp = glint::images::compare::compare_framebuffers(&cpu, &gpu, THRESHOLD_LEVELS)
+        .expect("same size");
     let allowed = (((w * h) as f64 * MAX_DIFFERING_FRACTION).floor() as usize).max(min_allowed);
     assert_within(name, &gpu, &cpu, &cmp, allowed);
 }

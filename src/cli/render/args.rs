@@ -4,10 +4,10 @@ use std::path::PathBuf;
 use std::time::Duration;
 
 use clap::Args;
-use glint::encode::{EncodeOptions, PngCompression};
-use glint::framebuffer::{ImageFile, DEFAULT_JPEG_QUALITY};
+use glint::images::encode::{EncodeOptions, PngCompression};
+use glint::images::framebuffer::{ImageFile, DEFAULT_JPEG_QUALITY};
 use glint::methods::Methods;
-use glint::region::Crop;
+use glint::parts::crop::Crop;
 use glint::render::RenderOptions;
 
 use crate::cli::values::{parse_error_target, parse_pixel, parse_range, parse_seconds};

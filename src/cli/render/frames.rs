@@ -1,6 +1,6 @@
 //! `render --frames`: an animation's frames rendered one after the other
 //! on one `Renderer`, each encoded and written on a worker while the next
-//! renders (`glint::write_queue`).
+//! renders (`glint::images::write_queue`).
 
 use std::path::{Path, PathBuf};
 use std::process::ExitCode;
@@ -8,7 +8,7 @@ use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Instant;
 
 use anyhow::Context as _;
-use glint::output::RenderOutput;
+use glint::render::RenderOutput;
 use glint::render::{Frames, Job, Renderer, Sink, Target, Watch};
 use indicatif::{ProgressBar, ProgressStyle};
 

@@ -39,7 +39,7 @@ pub(super) fn run(args: &RenderArgs, pixel: [u32; 2]) -> anyhow::Result<ExitCode
         );
     }
     let rgb = probed.value.color.map(|c| c.clamp(0.0, 1.0) as f32);
-    let [r, g, b] = rgb.map(glint::framebuffer::to_u8);
+    let [r, g, b] = rgb.map(glint::images::framebuffer::to_u8);
     println!("8-bit value ({r}, {g}, {b})");
     validation_verdict(probed.validation_messages)?;
     if args.verbose {

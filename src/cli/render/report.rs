@@ -5,8 +5,8 @@ use std::path::Path;
 use std::process::ExitCode;
 use std::time::Duration;
 
-use glint::framebuffer::ImageFile;
-use glint::progressive::Stopped;
+use glint::images::framebuffer::ImageFile;
+use glint::render::passes::Stopped;
 use glint::render::{Done, Job, Passes, Target};
 
 use super::{RenderArgs, Say};

@@ -174,7 +174,8 @@ pub fn hit_sphere_through_end<R: Real>(ray: &Ray<R>, s: &Sphere<R>, band: R) -> 
     } else {
         t1
     };
-    if other > R::ZERO && other < R::ONE - R::from_f64(crate::lights_on_surfaces::TANGENT_BAND) {
+    if other > R::ZERO && other < R::ONE - R::from_f64(crate::bvh::lights_on_surfaces::TANGENT_BAND)
+    {
         other
     } else {
         R::T_INF
@@ -525,7 +526,7 @@ pub fn graze_band<R: Real>(h: R, r: R) -> R {
     if h <= R::ZERO {
         return R::ZERO;
     }
-    let h = h + R::from_f64(crate::lights_on_surfaces::ON_SURFACE) * r;
+    let h = h + R::from_f64(crate::bvh::lights_on_surfaces::ON_SURFACE) * r;
     h * (R::TWO * r + h)
 }
 
@@ -540,7 +541,7 @@ pub fn in_plane_graze<R: Real>(sp: &SurfacePoint<R>, origin: R::V3, target: R::V
     let to_light = target - sp.p;
     let t = R::vabs(target);
     let h = R::TWO * length(origin - sp.p)
-        + R::from_f64(crate::lights_on_surfaces::ON_SURFACE)
+        + R::from_f64(crate::bvh::lights_on_surfaces::ON_SURFACE)
             * (t[0].max(t[1]).max(t[2]) + length(to_light));
     if R::dot(sp.ng, to_light).abs() <= h {
         R::TWO * h

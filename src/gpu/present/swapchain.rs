@@ -11,11 +11,11 @@ use ash::vk;
 use gpu_allocator::MemoryLocation;
 
 use super::mean::{DeviceMean, WINDOW_WAIT_NS};
-use crate::framebuffer::{to_u8, Framebuffer};
 use crate::gpu::buffer::Buffer;
 use crate::gpu::commands::{command_and_fence, submit_and_wait};
 use crate::gpu::context::{Context, Shared};
 use crate::gpu::error::{GpuError, VkResultExt};
+use crate::images::framebuffer::{to_u8, Framebuffer};
 
 /// What the window shows last: the device's mean, or a host image.
 #[derive(Clone, Copy, PartialEq, Eq)]

@@ -42,7 +42,7 @@ use super::error::GpuError;
 use super::pipeline::{Kernel, TracePipeline};
 use super::present::FrameTarget;
 use crate::camera::Camera;
-use crate::framebuffer::{Framebuffer, Image};
+use crate::images::framebuffer::{Framebuffer, Image};
 use crate::layout::GpuScene;
 use crate::probe::{PathRecord, ProbeImage};
 use crate::timing::Timings;

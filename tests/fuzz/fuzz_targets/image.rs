@@ -5,7 +5,7 @@
 libfuzzer_sys::fuzz_target!(|data: &[u8]| {
     for name in ["fuzz.png", "fuzz.jpg", "fuzz.ppm", "fuzz.exr"] {
         let path = std::path::Path::new(name);
-        let _ = glint::framebuffer::decode_image(data, path);
+        let _ = glint::images::framebuffer::decode_image(data, path);
         let _ = glint::parts::stamp::stamp_of(data, path);
     }
 });

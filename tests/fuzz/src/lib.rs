@@ -20,14 +20,14 @@ pub fn model(format: Format, data: &[u8]) {
 }
 
 fn use_mesh(m: &mesh::Mesh) {
-    let tris = m.triangles(None, |p| p, |n| n, |_| 0);
+    let tris = glint::scene::mesh::triangles(&m, None, |p| p, |n| n, |_| 0);
     assert_eq!(tris.len(), m.faces.len());
     for t in &tris {
         for v in &t.vertices {
             assert!(v.position.is_finite(), "a non-finite position got through");
         }
     }
-    let _ = m.bounds();
+    let _ = glint::scene::mesh::bounds(&m);
     let _ = m.report.summary();
 }
 

@@ -204,7 +204,7 @@ fn ms(s: Option<Stat>) -> f64 {
 impl BenchReport {
     /// Render time against primitive count, log-log, one line per backend
     /// (`glint bench --plot`): how each one's cost grows with the scene.
-    pub fn plot(&self) -> crate::plot::Plot {
+    pub fn plot(&self) -> crate::suites::plot::Plot {
         type Column = fn(&SceneResult) -> Option<Stat>;
         let columns: [(&str, Column); 3] = [
             ("GPU", |s| s.gpu),
@@ -227,7 +227,7 @@ impl BenchReport {
             "render time against primitives, {}x{}, median of {}",
             self.width, self.height, self.repeat
         );
-        crate::plot::log_log(&title, "primitives", "render time (ms)", &series)
+        crate::suites::plot::log_log(&title, "primitives", "render time (ms)", &series)
     }
 
     /// A Markdown table of medians (min-max in brackets), in milliseconds,

@@ -6,10 +6,11 @@
 
 use std::path::PathBuf;
 
-use super::{judge, write_failure, Tolerance};
-use crate::compare::{compare_framebuffers, Comparison};
+use super::judge::{judge, write_failure};
+use super::suite::Tolerance;
 use crate::cpu::Precision;
 use crate::gpu::DeviceSelector;
+use crate::images::compare::{compare_framebuffers, Comparison};
 use crate::render::{Backend, Job, Quiet, RenderOptions, Renderer, Sink};
 use crate::scene::Scene;
 use crate::Error;

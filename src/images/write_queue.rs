@@ -11,8 +11,8 @@ use std::sync::{Arc, Mutex, OnceLock};
 use std::thread::JoinHandle;
 use std::time::Instant;
 
-use crate::encode::{EncodeOptions, ImageFile};
-use crate::framebuffer::{write_bytes, Image};
+use crate::images::encode::{EncodeOptions, ImageFile};
+use crate::images::framebuffer::{write_bytes, Image};
 use crate::timing::Timings;
 use crate::Error;
 
@@ -193,7 +193,7 @@ fn run(task: &Task, shared: &Shared) -> Result<(), Error> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::framebuffer::Framebuffer;
+    use crate::images::framebuffer::Framebuffer;
 
     fn frame(v: f32) -> Image {
         Image::Float(Framebuffer {

@@ -73,7 +73,7 @@ pub struct Case {
     /// case where the device's own limits are beyond the suite's sizes).
     pub storage_limit: Option<u64>,
     /// A hard case, also probed and held to its failure counts.
-    pub hard: Option<crate::hard::Case>,
+    pub hard: Option<crate::suites::hard::Case>,
 }
 
 /// How much of the suite, and how large.
@@ -186,7 +186,8 @@ fn mesh_scene() -> Scene {
         shininess: 40.0,
     };
     let mut ids = crate::scene::MaterialIds::default();
-    let tris = m.triangles(
+    let tris = crate::scene::mesh::triangles(
+        &m,
         Some(material),
         |p| p * 1.2 + DVec3::new(0.8, 0.4, -7.0),
         |n| n,
@@ -331,7 +332,7 @@ pub fn cases(level: Level, storage_range: Option<u64>) -> Vec<Case> {
             },
         ),
     ];
-    for hard in crate::hard::cases() {
+    for hard in crate::suites::hard::cases() {
         // Their own sizes: several are built around where pixel rays fall.
         let (hw, hh) = match level {
             Level::Quick => (hard.width / 2, hard.height / 2),

@@ -5,13 +5,13 @@
 use std::fmt::Write as _;
 use std::time::Duration;
 
-use crate::compare::flip_mean;
 use crate::cpu::Precision;
 use crate::features::Features;
-use crate::framebuffer::Framebuffer;
+use crate::images::compare::flip_mean;
+use crate::images::framebuffer::Framebuffer;
 use crate::methods::Methods;
-use crate::plot::Plot;
 use crate::scene::{Effects, Scene, Settings};
+use crate::suites::plot::Plot;
 
 /// Where a point renders.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -373,7 +373,7 @@ pub fn plot(rows: &[Measured], title: &str) -> Plot {
             None => series.push((name, vec![point])),
         }
     }
-    crate::plot::log_log(title, "render time (ms)", "RMSE", &series)
+    crate::suites::plot::log_log(title, "render time (ms)", "RMSE", &series)
 }
 
 /// `plot` as SVG (text is drawn by whatever shows it).

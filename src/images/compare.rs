@@ -6,7 +6,7 @@ use std::fmt;
 
 use image::RgbImage;
 
-use crate::framebuffer::Framebuffer;
+use crate::images::framebuffer::Framebuffer;
 use crate::Error;
 
 /// How many of the worst pixels a comparison keeps.

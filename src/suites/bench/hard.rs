@@ -46,7 +46,7 @@ pub fn run_hard(
     options: &HardOptions,
     progress: &mut dyn FnMut(&str),
 ) -> Result<HardReport, Error> {
-    use crate::hard;
+    use crate::suites::hard;
     let mut out = String::new();
     let device = if options.gpu {
         let r = Renderer::new(&RenderOptions {

@@ -17,8 +17,8 @@
 
 use std::time::Duration;
 
-use crate::framebuffer::Framebuffer;
-use crate::output::RenderOutput;
+use super::output::RenderOutput;
+use crate::images::framebuffer::Framebuffer;
 use crate::scene::Effects;
 
 /// The fewest passes whose estimate a target trusts: with one pass per

@@ -64,10 +64,10 @@ impl Framebuffer {
     }
 }
 
-pub use crate::encode::DEFAULT_JPEG_QUALITY;
-use crate::encode::{EncodeOptions, Pixels};
+pub use crate::images::encode::DEFAULT_JPEG_QUALITY;
+use crate::images::encode::{EncodeOptions, Pixels};
 
-pub use crate::encode::ImageFile;
+pub use crate::images::encode::ImageFile;
 
 /// A finished image as a sink takes it: float values, or the 8-bit
 /// pixels a device (or the CPU reference's threads) already converted
@@ -157,7 +157,7 @@ pub fn encode_framebuffer(
             height: fb.height,
             color: image::ExtendedColorType::Rgb32F,
         };
-        return crate::encode::encode(pixels, kind, options);
+        return crate::images::encode::encode(pixels, kind, options);
     }
     encode_rgb8(&fb.to_rgb8(), kind, options)
 }
@@ -171,7 +171,7 @@ pub fn encode_rgb8(
     if kind.is_float() {
         return encode_framebuffer(&Image::Rgb8(img.clone()).to_float(), kind, options);
     }
-    crate::encode::encode(
+    crate::images::encode::encode(
         Pixels {
             bytes: img.as_raw(),
             width: img.width(),
@@ -275,7 +275,7 @@ fn encode_dynamic(
         height: converted.height(),
         color: converted.color().into(),
     };
-    crate::encode::encode(pixels, kind, &EncodeOptions::with_quality(jpeg_quality))
+    crate::images::encode::encode(pixels, kind, &EncodeOptions::with_quality(jpeg_quality))
 }
 
 /// Checks, before any work, that an image can be written at `path`: a

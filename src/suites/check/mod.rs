@@ -5,6 +5,7 @@
 //! `report` prints the table and writes JUnit XML.
 
 mod image_test;
+mod judge;
 pub mod report;
 pub mod suite;
 
@@ -12,14 +13,15 @@ use std::collections::HashMap;
 use std::path::PathBuf;
 use std::time::Duration;
 
-use crate::compare::{compare_framebuffers, Comparison};
 use crate::cpu::Precision;
-use crate::framebuffer::{write_image, Framebuffer};
 use crate::gpu::{DeviceInfo, DeviceLimits, DeviceSelector};
+use crate::images::compare::compare_framebuffers;
+use crate::images::framebuffer::Framebuffer;
 use crate::render::{Backend, RenderOptions, Renderer};
 use crate::timing::{CLOSEST_RAYS, SHADOW_RAYS};
 use crate::Error;
 pub use image_test::{image_test, ImageTest, Verdict};
+use judge::{judge, write_failure};
 pub use suite::{Case, Level, Tolerance};
 
 /// What `glint check` was asked for.
@@ -225,13 +227,13 @@ fn check_case(
     let pixels = (case.width * case.height) as usize;
     let (mut why, allowed) = judge(&case.tolerance, pixels, &against_twin, &against_truth);
     if let Some(hard) = &case.hard {
-        let (probe, _) = crate::hard::probe(
+        let (probe, _) = crate::suites::hard::probe(
             hard,
-            crate::hard::Runner::Gpu,
+            crate::suites::hard::Runner::Gpu,
             crate::methods::Methods::Robust,
             gpu.gpu(),
         )?;
-        let counts = crate::hard::metrics::count(&probe, &hard.reference());
+        let counts = crate::suites::hard::metrics::count(&probe, &hard.reference());
         for &m in &hard.checks {
             let n = counts.get(m);
             if n > 0 {
@@ -273,44 +275,6 @@ fn check_case(
     })
 }
 
-/// What is wrong with a device's image against the CPU twin and truth, by
-/// `t` (nothing: it passes), and how many pixels may be off.
-fn judge(
-    t: &Tolerance,
-    pixels: usize,
-    against_twin: &Comparison,
-    against_truth: &Comparison,
-) -> (Vec<String>, usize) {
-    let allowed = ((pixels as f64 * t.f32_fraction) as usize).max(t.f32_min_pixels);
-    let mut why = Vec::new();
-    if against_twin.over_threshold > allowed {
-        why.push(format!(
-            "{} pixels more than 1 level off the CPU f32 twin (allowed {allowed}; worst {:.0} levels at {})",
-            against_twin.over_threshold,
-            against_twin.max_abs,
-            against_twin
-                .worst
-                .first()
-                .map_or(String::new(), |w| format!("{},{}", w.x, w.y))
-        ));
-    }
-    if against_twin.flip_mean > t.f32_flip {
-        why.push(format!(
-            "FLIP {:.5} against the f32 twin (allowed {})",
-            against_twin.flip_mean, t.f32_flip
-        ));
-    }
-    if let Some(limit) = t.f64_flip {
-        if against_truth.flip_mean > limit {
-            why.push(format!(
-                "FLIP {:.4} against the f64 reference (allowed {limit})",
-                against_truth.flip_mean
-            ));
-        }
-    }
-    (why, allowed)
-}
-
 /// The planted error: a block of wrong pixels in the middle of the image.
 fn plant(image: &mut Framebuffer) {
     let (w, h) = (image.width as usize, image.height as usize);
@@ -319,26 +283,4 @@ fn plant(image: &mut Framebuffer) {
             image.pixels[y * w + x] = [1.0, 0.0, 1.0];
         }
     }
-}
-
-/// Writes a failed image beside the CPU twin's and their difference as a
-/// heat map (`NAME.device.png`, `NAME.cpu.png`, `NAME.diff.png`).
-fn write_failure(
-    dir: &std::path::Path,
-    name: &str,
-    image: &Framebuffer,
-    twin: &Framebuffer,
-    cmp: &Comparison,
-) -> Result<Vec<PathBuf>, Error> {
-    std::fs::create_dir_all(dir).map_err(|error| Error::WriteFile {
-        path: dir.to_path_buf(),
-        error,
-    })?;
-    let base = dir.join(name);
-    let twin8 = twin.to_rgb8();
-    let paths = ["device.png", "cpu.png", "diff.png"].map(|e| base.with_extension(e));
-    write_image(&image.to_rgb8(), &paths[0], 95)?;
-    write_image(&twin8, &paths[1], 95)?;
-    write_image(&cmp.diff_image(&twin8), &paths[2], 95)?;
-    Ok(paths.to_vec())
 }

@@ -1,6 +1,6 @@
 //! What a render gives back: the image, and how it was made.
 
-use crate::framebuffer::{Framebuffer, Image};
+use crate::images::framebuffer::{Framebuffer, Image};
 use crate::memory::MemoryNeed;
 use crate::timing::Timings;
 

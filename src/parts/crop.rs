@@ -9,7 +9,7 @@
 use std::fmt;
 use std::path::Path;
 
-use crate::framebuffer::{Framebuffer, ImageFile};
+use crate::images::framebuffer::{Framebuffer, ImageFile};
 use crate::Error;
 
 /// A rectangle of pixels, `x0 <= x < x1`, `y0 <= y < y1` (pbrt's
@@ -89,12 +89,16 @@ pub fn check_part_format(path: &Path) -> Result<(), Error> {
 pub fn write_part(fb: &Framebuffer, crop: &Crop, path: &Path) -> Result<(), Error> {
     check_part_format(path)?;
     let img = part_image(fb, crop, ImageFile::of(path)?.is_float());
-    crate::framebuffer::write_dynamic(&img, path, 95)
+    crate::images::framebuffer::write_dynamic(&img, path, 95)
 }
 
 /// As `write_part`, a PNG on standard output.
 pub fn write_part_to_stdout(fb: &Framebuffer, crop: &Crop) -> Result<(), Error> {
-    crate::framebuffer::write_dynamic_to_stdout(&part_image(fb, crop, false), ImageFile::Png, 95)
+    crate::images::framebuffer::write_dynamic_to_stdout(
+        &part_image(fb, crop, false),
+        ImageFile::Png,
+        95,
+    )
 }
 
 fn part_image(fb: &Framebuffer, crop: &Crop, float: bool) -> image::DynamicImage {
@@ -119,7 +123,7 @@ fn part_image(fb: &Framebuffer, crop: &Crop, float: bool) -> image::DynamicImage
         .enumerate()
         .flat_map(|(i, p)| {
             if inside(i) {
-                let [r, g, b] = p.map(crate::framebuffer::to_u8);
+                let [r, g, b] = p.map(crate::images::framebuffer::to_u8);
                 [r, g, b, 255]
             } else {
                 [0; 4]
@@ -155,7 +159,7 @@ pub fn stitch(parts: &[&Path]) -> Result<Stitched, Error> {
     let (mut overlapping, mut disagreeing) = (0u64, 0u64);
     for &path in parts {
         let kind = ImageFile::of(path)?;
-        let img = crate::framebuffer::open(path)?;
+        let img = crate::images::framebuffer::open(path)?;
         if !img.color().has_alpha() {
             return Err(Error::ReadImage {
                 path: path.to_path_buf(),

@@ -1,0 +1,20 @@
+//! The Phong material, below both the scene parser and the model-file
+//! readers that make one.
+
+use glam::DVec3;
+
+/// Diffuse and specular reflectance with a Phong exponent, per channel.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct Material {
+    pub kd: DVec3,
+    pub ks: DVec3,
+    pub shininess: f64,
+}
+
+impl Material {
+    /// Its exact bits, for finding equal materials (`-0.0` and `0.0` apart).
+    pub fn key(&self) -> [u64; 7] {
+        let (d, s) = (self.kd, self.ks);
+        [d.x, d.y, d.z, s.x, s.y, s.z, self.shininess].map(f64::to_bits)
+    }
+}
