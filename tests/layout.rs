@@ -1,6 +1,6 @@
 //! Host/shader layout agreement: every struct's member offsets and size, every
 //! storage array's stride, the bindings' kinds, and the constants both sides
-//! share, read from the shader by naga and compared with src/layout.rs.
+//! share, read from the shader by naga and compared with src/layout/.
 
 use std::mem::{offset_of, size_of};
 
@@ -10,9 +10,7 @@ use glint::layout::*;
 use naga::{AddressSpace, ArraySize, Expression, Literal, Module, TypeInner};
 
 fn shader() -> Module {
-    let path = concat!(env!("CARGO_MANIFEST_DIR"), "/shaders/trace.wgsl");
-    let source = std::fs::read_to_string(path).expect("read shader");
-    naga::front::wgsl::parse_str(&source).expect("shader parses")
+    naga::front::wgsl::parse_str(glint::gpu::shader::TRACE_WGSL).expect("shader parses")
 }
 
 /// (member name, offset) pairs and the size of the shader struct `name`.

@@ -113,7 +113,7 @@ fn string_words(s: &str) -> Vec<u32> {
 /// addressing model this needs, and naga's unused access chains to
 /// `device_memory` in the callers go, so it needs no binding. WGSL has no
 /// pointers into device memory, hence this pass (see "Address lists" in
-/// shaders/trace.wgsl).
+/// shaders/trace/layout.wgsl).
 pub fn device_loads(words: &[u32]) -> Vec<u32> {
     let list: Vec<(u32, &[u32])> = instructions(words).collect();
     let mut marker = None;

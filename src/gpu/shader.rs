@@ -22,9 +22,58 @@ use super::rewrite::{device_loads, no_contraction, unfill_local_arrays};
 use crate::features::Features;
 use crate::methods::Methods;
 
-/// The shader source, compiled into the binary.
-pub const TRACE_WGSL: &str = include_str!("../../shaders/trace.wgsl");
-const TRACE_PATH: &str = "shaders/trace.wgsl";
+/// The shader's pieces, by concept, each beside its CPU twin, in the order
+/// they are joined (a plain join: WGSL declarations may come in any order,
+/// and each piece is whole declarations).
+pub const TRACE_PIECES: [&str; 7] = [
+    "layout", "sample", "hit", "scene", "traverse", "shade", "kernel",
+];
+
+/// The shader source: the pieces joined, compiled into the binary.
+pub const TRACE_WGSL: &str = concat!(
+    include_str!("../../shaders/trace/layout.wgsl"),
+    include_str!("../../shaders/trace/sample.wgsl"),
+    include_str!("../../shaders/trace/hit.wgsl"),
+    include_str!("../../shaders/trace/scene.wgsl"),
+    include_str!("../../shaders/trace/traverse.wgsl"),
+    include_str!("../../shaders/trace/shade.wgsl"),
+    include_str!("../../shaders/trace/kernel.wgsl"),
+);
+const TRACE_PATH: &str = "shaders/trace/*.wgsl, joined";
+
+/// Where line `line` (1-based) of `TRACE_WGSL` comes from: the piece's
+/// file and its line there, for messages.
+pub fn trace_source_line(line: usize) -> Option<(String, usize)> {
+    let mut first = 1;
+    for (name, text) in TRACE_PIECES.iter().zip(trace_piece_texts()) {
+        let lines = text.matches('\n').count();
+        if line < first + lines {
+            return Some((format!("shaders/trace/{name}.wgsl"), line - first + 1));
+        }
+        first += lines;
+    }
+    None
+}
+
+fn trace_piece_texts() -> [&'static str; 7] {
+    [
+        include_str!("../../shaders/trace/layout.wgsl"),
+        include_str!("../../shaders/trace/sample.wgsl"),
+        include_str!("../../shaders/trace/hit.wgsl"),
+        include_str!("../../shaders/trace/scene.wgsl"),
+        include_str!("../../shaders/trace/traverse.wgsl"),
+        include_str!("../../shaders/trace/shade.wgsl"),
+        include_str!("../../shaders/trace/kernel.wgsl"),
+    ]
+}
+
+/// A naga message about the joined source, with the piece it points into.
+fn located(message: String, line: Option<usize>) -> String {
+    match line.and_then(trace_source_line) {
+        Some((file, at)) => format!("{message}\n(at {file}:{at})"),
+        None => message,
+    }
+}
 
 pub(crate) fn parsed() -> Result<&'static (Module, ModuleInfo), ShaderError> {
     static PARSED: OnceLock<Result<(Module, ModuleInfo), ShaderError>> = OnceLock::new();
@@ -34,11 +83,23 @@ pub(crate) fn parsed() -> Result<&'static (Module, ModuleInfo), ShaderError> {
                 what: "parse".into(),
                 message,
             };
-            let module = naga::front::wgsl::parse_str(TRACE_WGSL)
-                .map_err(|e| fail(e.emit_to_string_with_path(TRACE_WGSL, TRACE_PATH)))?;
-            let info = validator()
-                .validate(&module)
-                .map_err(|e| fail(e.emit_to_string_with_path(TRACE_WGSL, TRACE_PATH)))?;
+            let module = naga::front::wgsl::parse_str(TRACE_WGSL).map_err(|e| {
+                let line = e.location(TRACE_WGSL).map(|l| l.line_number as usize);
+                fail(located(
+                    e.emit_to_string_with_path(TRACE_WGSL, TRACE_PATH),
+                    line,
+                ))
+            })?;
+            let info = validator().validate(&module).map_err(|e| {
+                let line = e
+                    .spans()
+                    .next()
+                    .map(|(span, _)| span.location(TRACE_WGSL).line_number as usize);
+                fail(located(
+                    e.emit_to_string_with_path(TRACE_WGSL, TRACE_PATH),
+                    line,
+                ))
+            })?;
             Ok((module, info))
         })
         .as_ref()
@@ -300,6 +361,27 @@ fn prune_block(block: Block, f: &Function, m: &Constants) -> Block {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The joined source is the pieces in order, and a line of it is
+    /// traced back to its piece: each piece's own header comment is its
+    /// first line.
+    #[test]
+    fn the_pieces_join_in_order_and_lines_find_their_piece() {
+        let texts = trace_piece_texts();
+        assert_eq!(TRACE_WGSL, texts.concat());
+        let mut line = 1;
+        for (name, text) in TRACE_PIECES.iter().zip(texts) {
+            let file = format!("shaders/trace/{name}.wgsl");
+            assert_eq!(trace_source_line(line), Some((file.clone(), 1)));
+            if *name != "layout" {
+                assert!(text.starts_with(&format!("// {file}:")), "{file}");
+            }
+            let lines = text.matches('\n').count();
+            assert_eq!(trace_source_line(line + lines - 1), Some((file, lines)));
+            line += lines;
+        }
+        assert_eq!(trace_source_line(line), None);
+    }
 
     fn function_names(m: &Module) -> Vec<String> {
         m.functions

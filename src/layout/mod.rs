@@ -1,7 +1,7 @@
 //! Every GPU-visible struct, defined once here (`#[repr(C)]`, `bytemuck`), and
 //! the packing of a `Scene` + `Bvh` into those buffers.
 //!
-//! `shaders/trace.wgsl` declares the same structs by hand (WGSL has no
+//! `shaders/trace/layout.wgsl` declares the same structs by hand (WGSL has no
 //! include); `tests/layout.rs` reads the shader's member offsets, struct sizes
 //! and shared constants from naga and compares them with these, so the two
 //! cannot drift apart silently. Fields are grouped as `vec3 + scalar` so WGSL's

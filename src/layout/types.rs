@@ -1,5 +1,5 @@
 //! Every GPU-visible struct and shared constant, defined once here
-//! (`#[repr(C)]`, `bytemuck`). `shaders/trace.wgsl` declares the same
+//! (`#[repr(C)]`, `bytemuck`). `shaders/trace/layout.wgsl` declares the same
 //! structs by hand (WGSL has no include); `tests/layout.rs` reads the
 //! shader's member offsets, struct sizes and shared constants from naga and
 //! compares them with these, so the two cannot drift apart silently. Fields
@@ -199,7 +199,7 @@ pub const SPLIT_FIRST: usize = 14;
 /// Lists a shader with uniform lists reads from uniform buffers instead of
 /// their storage bindings: (storage binding, name), the uniform copy of list
 /// j at binding `UNIFORM_FIRST + j` (see "Uniform lists" in
-/// shaders/trace.wgsl).
+/// shaders/trace/layout.wgsl).
 pub const UNIFORM_LISTS: [(usize, &str); 4] = [
     (2, "spheres"),
     (3, "triangles"),

@@ -1,5 +1,5 @@
 //! The shader's algorithm on the CPU, function for function and name for name
-//! (`shaders/trace.wgsl`), generic over f32 (the shader's twin) and f64.
+//! (`shaders/trace/`), generic over f32 (the shader's twin) and f64.
 //! Comments on the why live in the shader; this file stays a mirror of it.
 
 mod hit;

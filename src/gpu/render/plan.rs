@@ -222,11 +222,11 @@ pub(crate) struct ListForms {
     pub(crate) uniform: bool,
 }
 
-/// Address lists (see "Address lists" in shaders/trace.wgsl) where `forms`
+/// Address lists (see "Address lists" in shaders/trace/layout.wgsl) where `forms`
 /// allows them, no list is split, the device enabled device addresses and
 /// each of `layout::ADDRESS_LISTS` (`address_lens` bytes) is at most
 /// `ADDRESS_LIST_MAX_BYTES`. Otherwise uniform lists (see "Uniform lists"
-/// in shaders/trace.wgsl) where `forms` allows them, no list is split,
+/// in shaders/trace/layout.wgsl) where `forms` allows them, no list is split,
 /// each of `layout::UNIFORM_LISTS` (`lens` bytes) fits its copy, and the
 /// device binds copies that large and that many uniform buffers; else the
 /// plain or split layout.
