@@ -166,6 +166,30 @@ pub fn parse(src: &[u8], path: &Path) -> Result<Mesh, MeshError> {
     if t.token() != Some(b"ply") {
         return Err(t.error("expected the header `ply`"));
     }
+    let (encoding, elements) = header(&mut t)?;
+    let mut r = match encoding {
+        Encoding::Ascii => Reader::Ascii(t),
+        e => Reader::Binary {
+            src,
+            pos: t.offset(),
+            big: e == Encoding::Big,
+            path,
+        },
+    };
+    let mut b = Builder::new(path);
+    for element in elements.iter().filter(|e| !e.properties.is_empty()) {
+        read_element(&mut r, element, &mut b)?;
+    }
+    // PLY normals are per vertex: a face's corners use their vertices' own.
+    if !b.mesh.normals.is_empty() {
+        b.corner_normals_are_positions();
+    }
+    b.finish()
+}
+
+/// The header after `ply`, through `end_header`: the encoding and the
+/// elements with their properties.
+fn header(t: &mut Text) -> Result<(Encoding, Vec<Element>), MeshError> {
     t.next_line();
     let mut encoding = None;
     let mut elements: Vec<Element> = Vec::new();
@@ -212,16 +236,16 @@ pub fn parse(src: &[u8], path: &Path) -> Result<Mesh, MeshError> {
                 };
                 let property = if ty_name == b"list" {
                     let count_ty = t.token_on_line().unwrap_or_default();
-                    let count = Scalar::parse(count_ty).ok_or_else(|| unknown(&t, count_ty))?;
+                    let count = Scalar::parse(count_ty).ok_or_else(|| unknown(t, count_ty))?;
                     let item_ty = t.token_on_line().unwrap_or_default();
-                    let item = Scalar::parse(item_ty).ok_or_else(|| unknown(&t, item_ty))?;
+                    let item = Scalar::parse(item_ty).ok_or_else(|| unknown(t, item_ty))?;
                     Property {
                         name: t.token_on_line().unwrap_or_default().to_vec(),
                         list: Some(count),
                         ty: item,
                     }
                 } else {
-                    let ty = Scalar::parse(ty_name).ok_or_else(|| unknown(&t, ty_name))?;
+                    let ty = Scalar::parse(ty_name).ok_or_else(|| unknown(t, ty_name))?;
                     Property {
                         name: t.token_on_line().unwrap_or_default().to_vec(),
                         list: None,
@@ -241,114 +265,99 @@ pub fn parse(src: &[u8], path: &Path) -> Result<Mesh, MeshError> {
     let Some(encoding) = encoding else {
         return Err(t.error("the header has no `format` line"));
     };
-    let mut r = match encoding {
-        Encoding::Ascii => Reader::Ascii(t),
-        e => Reader::Binary {
-            src,
-            pos: t.offset(),
-            big: e == Encoding::Big,
-            path,
-        },
-    };
-    let mut b = Builder::new(path);
+    Ok((encoding, elements))
+}
+
+/// Every item of `element`: vertices' positions, normals and colours
+/// into the mesh, faces' corner lists as polygons.
+fn read_element(r: &mut Reader, element: &Element, b: &mut Builder) -> Result<(), MeshError> {
     let mut corners: Vec<u32> = Vec::new();
-    for element in &elements {
-        if element.properties.is_empty() {
-            continue;
-        }
-        let is_vertex = element.name == b"vertex";
-        let is_face = element.name == b"face";
-        let find = |n: &[&[u8]]| {
-            element
-                .properties
-                .iter()
-                .position(|p| n.contains(&p.name.as_slice()))
-        };
-        let xyz = [find(&[b"x"]), find(&[b"y"]), find(&[b"z"])];
-        let nxyz = [find(&[b"nx"]), find(&[b"ny"]), find(&[b"nz"])];
-        let rgb = [
-            find(&[b"red", b"r", b"diffuse_red"]),
-            find(&[b"green", b"g", b"diffuse_green"]),
-            find(&[b"blue", b"b", b"diffuse_blue"]),
-        ];
-        let indices = find(&[b"vertex_indices", b"vertex_index"]);
-        if is_vertex && xyz.iter().any(Option::is_none) {
-            return Err(r.error("the vertex element has no x, y and z".into()));
-        }
-        if is_face && indices.is_none() {
-            return Err(r.error("the face element has no vertex_indices list".into()));
-        }
-        let has_normals = is_vertex && nxyz.iter().all(Option::is_some);
-        let has_colors = is_vertex && rgb.iter().all(Option::is_some);
-        // Non-finite normals and positions are repaired or dropped by
-        // `build`, with warnings; other values must be finite.
-        let repaired: Vec<bool> = (0..element.properties.len())
-            .map(|k| {
-                (has_normals && nxyz.contains(&Some(k))) || (is_vertex && xyz.contains(&Some(k)))
-            })
-            .collect();
-        // Integer colours are 0-255 levels, float ones 0-1.
-        let color_levels = rgb[0].map_or(1.0, |i| {
-            if element.properties[i].ty.is_integer() {
-                255.0
-            } else {
-                1.0
-            }
-        });
-        let names: Vec<String> = element
+    let is_vertex = element.name == b"vertex";
+    let is_face = element.name == b"face";
+    let find = |n: &[&[u8]]| {
+        element
             .properties
             .iter()
-            .map(|p| String::from_utf8_lossy(&p.name).into_owned())
-            .collect();
-        let mut values = vec![0.0; element.properties.len()];
-        for _ in 0..element.count {
-            let at = r.loc();
-            for (k, p) in element.properties.iter().enumerate() {
-                let name = &names[k];
-                match p.list {
-                    None => values[k] = r.value(p.ty, name, repaired[k])?,
-                    Some(count_ty) => {
-                        let n = r.value(count_ty, &format!("the length of {name}"), false)?;
-                        if !(0.0..=1e6).contains(&n) || n.fract() != 0.0 {
-                            return Err(r.error(format!("a list of {n} items in {name}")));
-                        }
-                        let take = is_face && Some(k) == indices;
-                        corners.clear();
-                        for _ in 0..n as usize {
-                            let v = r.value(p.ty, name, false)?;
-                            if take {
-                                if v < 0.0 || v.fract() != 0.0 {
-                                    return Err(r.error(format!(
-                                        "vertex index {v} is not a whole number from 0"
-                                    )));
-                                }
-                                corners.push(v.min(f64::from(u32::MAX)) as u32);
-                            }
-                        }
+            .position(|p| n.contains(&p.name.as_slice()))
+    };
+    let xyz = [find(&[b"x"]), find(&[b"y"]), find(&[b"z"])];
+    let nxyz = [find(&[b"nx"]), find(&[b"ny"]), find(&[b"nz"])];
+    let rgb = [
+        find(&[b"red", b"r", b"diffuse_red"]),
+        find(&[b"green", b"g", b"diffuse_green"]),
+        find(&[b"blue", b"b", b"diffuse_blue"]),
+    ];
+    let indices = find(&[b"vertex_indices", b"vertex_index"]);
+    if is_vertex && xyz.iter().any(Option::is_none) {
+        return Err(r.error("the vertex element has no x, y and z".into()));
+    }
+    if is_face && indices.is_none() {
+        return Err(r.error("the face element has no vertex_indices list".into()));
+    }
+    let has_normals = is_vertex && nxyz.iter().all(Option::is_some);
+    let has_colors = is_vertex && rgb.iter().all(Option::is_some);
+    // Non-finite normals and positions are repaired or dropped by
+    // `build`, with warnings; other values must be finite.
+    let repaired: Vec<bool> = (0..element.properties.len())
+        .map(|k| (has_normals && nxyz.contains(&Some(k))) || (is_vertex && xyz.contains(&Some(k))))
+        .collect();
+    // Integer colours are 0-255 levels, float ones 0-1.
+    let color_levels = rgb[0].map_or(1.0, |i| {
+        if element.properties[i].ty.is_integer() {
+            255.0
+        } else {
+            1.0
+        }
+    });
+    let names: Vec<String> = element
+        .properties
+        .iter()
+        .map(|p| String::from_utf8_lossy(&p.name).into_owned())
+        .collect();
+    let mut values = vec![0.0; element.properties.len()];
+    for _ in 0..element.count {
+        let at = r.loc();
+        for (k, p) in element.properties.iter().enumerate() {
+            let name = &names[k];
+            match p.list {
+                None => values[k] = r.value(p.ty, name, repaired[k])?,
+                Some(count_ty) => {
+                    let n = r.value(count_ty, &format!("the length of {name}"), false)?;
+                    if !(0.0..=1e6).contains(&n) || n.fract() != 0.0 {
+                        return Err(r.error(format!("a list of {n} items in {name}")));
+                    }
+                    let take = is_face && Some(k) == indices;
+                    corners.clear();
+                    for _ in 0..n as usize {
+                        let v = r.value(p.ty, name, false)?;
                         if take {
-                            if b.corner_count() + corners.len() >= u32::MAX as usize {
-                                return Err(r.error("more than 4 billion face corners".into()));
+                            if v < 0.0 || v.fract() != 0.0 {
+                                return Err(r.error(format!(
+                                    "vertex index {v} is not a whole number from 0"
+                                )));
                             }
-                            b.polygon(corners.iter().map(|&c| (c, None)), None, at);
+                            corners.push(v.min(f64::from(u32::MAX)) as u32);
                         }
+                    }
+                    if take {
+                        if b.corner_count() + corners.len() >= u32::MAX as usize {
+                            return Err(r.error("more than 4 billion face corners".into()));
+                        }
+                        b.polygon(corners.iter().map(|&c| (c, None)), None, at);
                     }
                 }
             }
-            if is_vertex {
-                let get = |i: [Option<usize>; 3]| i.map(|k| values[k.unwrap_or(0)]);
-                b.mesh.positions.push(DVec3::from(get(xyz)));
-                if has_normals {
-                    b.mesh.normals.push(DVec3::from(get(nxyz)));
-                }
-                if has_colors {
-                    b.mesh.colors.push(DVec3::from(get(rgb)) / color_levels);
-                }
+        }
+        if is_vertex {
+            let get = |i: [Option<usize>; 3]| i.map(|k| values[k.unwrap_or(0)]);
+            b.mesh.positions.push(DVec3::from(get(xyz)));
+            if has_normals {
+                b.mesh.normals.push(DVec3::from(get(nxyz)));
+            }
+            if has_colors {
+                b.mesh.colors.push(DVec3::from(get(rgb)) / color_levels);
             }
         }
     }
-    // PLY normals are per vertex: a face's corners use their vertices' own.
-    if !b.mesh.normals.is_empty() {
-        b.corner_normals_are_positions();
-    }
-    b.finish()
+    Ok(())
 }
