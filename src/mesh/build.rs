@@ -20,6 +20,21 @@ pub enum Loc {
     Label(u32),
 }
 
+/// Which normals and positions of the file are unusable (not finite, or a
+/// normal of no length).
+struct Unusable {
+    normal: Vec<bool>,
+    position: Vec<bool>,
+}
+
+/// Space reused from polygon to polygon.
+#[derive(Default)]
+struct Scratch {
+    ring: Vec<(u32, Option<u32>)>,
+    points: Vec<DVec3>,
+    tris: Vec<[usize; 3]>,
+}
+
 struct Poly {
     start: u32,
     len: u32,
@@ -102,143 +117,22 @@ impl<'a> Builder<'a> {
                 message: "more than 4 billion polygon corners; split the model".into(),
             });
         }
-        let np = self.mesh.positions.len() as u32;
         let nn = self.mesh.normals.len();
-        let nm = self.mesh.materials.len() as u32;
-        let bad_normal: Vec<bool> = self
-            .mesh
-            .normals
-            .iter()
-            .map(|n| !n.is_finite() || n.length_squared() == 0.0)
-            .collect();
-        let bad_position: Vec<bool> = self.mesh.positions.iter().map(|p| !p.is_finite()).collect();
+        let bad = Unusable {
+            normal: self
+                .mesh
+                .normals
+                .iter()
+                .map(|n| !n.is_finite() || n.length_squared() == 0.0)
+                .collect(),
+            position: self.mesh.positions.iter().map(|p| !p.is_finite()).collect(),
+        };
         let mut used_normals = false;
-        let mut ring: Vec<(u32, Option<u32>)> = Vec::new();
-        let mut points: Vec<DVec3> = Vec::new();
-        let mut tris: Vec<[usize; 3]> = Vec::new();
+        let mut scratch = Scratch::default();
         let polys = std::mem::take(&mut self.polys);
         self.mesh.faces.reserve(polys.len());
         for poly in &polys {
-            let corners = &self.corners[poly.start as usize..(poly.start + poly.len) as usize];
-            if let Some(&(p, _)) = corners.iter().find(|c| c.0 >= np) {
-                return Err(MeshError {
-                    path: self.path.to_path_buf(),
-                    at: self.show(poly.at),
-                    message: format!("a face refers to vertex {p}, but there are {np}"),
-                });
-            }
-            if let Some(m) = poly.material.filter(|&m| m >= nm) {
-                return Err(MeshError {
-                    path: self.path.to_path_buf(),
-                    at: self.show(poly.at),
-                    message: format!("a face refers to material {m}, but there are {nm}"),
-                });
-            }
-            if corners.iter().any(|c| bad_position[c.0 as usize]) {
-                let at = self.show(poly.at);
-                self.warn(
-                    Tolerance::BadPosition,
-                    at,
-                    "a face with a vertex that is not finite (NaN or infinite) dropped",
-                );
-                continue;
-            }
-            // Repeated corners (consecutive, or the last equal to the first) go.
-            ring.clear();
-            for &c in corners {
-                if ring.last().map(|l| l.0) != Some(c.0) {
-                    ring.push(c);
-                }
-            }
-            while ring.len() > 1 && ring.first().map(|f| f.0) == ring.last().map(|l| l.0) {
-                ring.pop();
-            }
-            if ring.len() < 3 {
-                let at = self.show(poly.at);
-                let message = if corners.len() < 3 {
-                    format!("a face with {} corner(s) dropped", corners.len())
-                } else {
-                    "a face whose corners repeat one vertex dropped".to_string()
-                };
-                self.warn(Tolerance::DegenerateFace, at, message);
-                continue;
-            }
-            let with = ring.iter().filter(|c| c.1.is_some()).count();
-            let normals_usable = if with == ring.len() {
-                used_normals = true;
-                true
-            } else {
-                if with > 0 {
-                    used_normals = true;
-                    let at = self.show(poly.at);
-                    self.warn(
-                        Tolerance::PartialNormals,
-                        at,
-                        format!(
-                            "a face gives normals for {with} of its {} corners; smooth normals \
-                             are used for all of them",
-                            ring.len()
-                        ),
-                    );
-                }
-                false
-            };
-            if let Some(k) = ring.iter().filter_map(|c| c.1).find(|&k| k as usize >= nn) {
-                return Err(MeshError {
-                    path: self.path.to_path_buf(),
-                    at: self.show(poly.at),
-                    message: format!("a face refers to normal {k}, but there are {nn}"),
-                });
-            }
-            points.clear();
-            points.extend(ring.iter().map(|c| self.mesh.positions[c.0 as usize]));
-            tris.clear();
-            let cut = triangulate(&points, &mut tris);
-            if cut == Cut::Tangled {
-                let at = self.show(poly.at);
-                self.warn(
-                    Tolerance::TangledPolygon,
-                    at,
-                    format!(
-                        "a concave polygon of {} corners that ear clipping cannot cut (it \
-                         crosses itself, or has over {} corners) is fanned from its first corner",
-                        ring.len(),
-                        super::polygon::MAX_EAR_CORNERS
-                    ),
-                );
-            }
-            let before = self.mesh.faces.len();
-            for t in &tris {
-                let [a, b, c] = t.map(|k| points[k]);
-                if (b - a).cross(c - a).length_squared() == 0.0 {
-                    continue;
-                }
-                let normals = normals_usable.then(|| {
-                    t.map(|k| {
-                        let n = ring[k].1.unwrap_or(SMOOTH);
-                        if n != SMOOTH && bad_normal[n as usize] {
-                            SMOOTH
-                        } else {
-                            n
-                        }
-                    })
-                });
-                self.mesh.faces.push(Face {
-                    positions: t.map(|k| ring[k].0),
-                    normals,
-                    material: poly.material,
-                });
-            }
-            if self.mesh.faces.len() == before {
-                let at = self.show(poly.at);
-                self.warn(
-                    Tolerance::DegenerateFace,
-                    at,
-                    "a face without area (its corners lie on one line) dropped",
-                );
-            } else if normals_usable {
-                self.note_bad_normals(&ring, &bad_normal, poly.at);
-            }
+            self.add_polygon(poly, &bad, &mut scratch, &mut used_normals)?;
         }
         if nn > 0 && !used_normals {
             self.warn(
@@ -251,6 +145,148 @@ impl<'a> Builder<'a> {
             );
         }
         Ok(self.mesh)
+    }
+
+    /// One polygon's triangles into the mesh, or a warning saying why it
+    /// was dropped; an error where it refers to what the file lacks.
+    /// `used_normals` is set where it names file normals.
+    fn add_polygon(
+        &mut self,
+        poly: &Poly,
+        bad: &Unusable,
+        s: &mut Scratch,
+        used_normals: &mut bool,
+    ) -> Result<(), MeshError> {
+        let np = self.mesh.positions.len() as u32;
+        let nn = self.mesh.normals.len();
+        let nm = self.mesh.materials.len() as u32;
+        let corners = &self.corners[poly.start as usize..(poly.start + poly.len) as usize];
+        if let Some(&(p, _)) = corners.iter().find(|c| c.0 >= np) {
+            return Err(MeshError {
+                path: self.path.to_path_buf(),
+                at: self.show(poly.at),
+                message: format!("a face refers to vertex {p}, but there are {np}"),
+            });
+        }
+        if let Some(m) = poly.material.filter(|&m| m >= nm) {
+            return Err(MeshError {
+                path: self.path.to_path_buf(),
+                at: self.show(poly.at),
+                message: format!("a face refers to material {m}, but there are {nm}"),
+            });
+        }
+        if corners.iter().any(|c| bad.position[c.0 as usize]) {
+            let at = self.show(poly.at);
+            self.warn(
+                Tolerance::BadPosition,
+                at,
+                "a face with a vertex that is not finite (NaN or infinite) dropped",
+            );
+            return Ok(());
+        }
+        // Repeated corners (consecutive, or the last equal to the first) go.
+        s.ring.clear();
+        for &c in corners {
+            if s.ring.last().map(|l| l.0) != Some(c.0) {
+                s.ring.push(c);
+            }
+        }
+        while s.ring.len() > 1 && s.ring.first().map(|f| f.0) == s.ring.last().map(|l| l.0) {
+            s.ring.pop();
+        }
+        if s.ring.len() < 3 {
+            let at = self.show(poly.at);
+            let message = if corners.len() < 3 {
+                format!("a face with {} corner(s) dropped", corners.len())
+            } else {
+                "a face whose corners repeat one vertex dropped".to_string()
+            };
+            self.warn(Tolerance::DegenerateFace, at, message);
+            return Ok(());
+        }
+        let with = s.ring.iter().filter(|c| c.1.is_some()).count();
+        let normals_usable = if with == s.ring.len() {
+            *used_normals = true;
+            true
+        } else {
+            if with > 0 {
+                *used_normals = true;
+                let at = self.show(poly.at);
+                self.warn(
+                    Tolerance::PartialNormals,
+                    at,
+                    format!(
+                        "a face gives normals for {with} of its {} corners; smooth normals \
+                             are used for all of them",
+                        s.ring.len()
+                    ),
+                );
+            }
+            false
+        };
+        if let Some(k) = s
+            .ring
+            .iter()
+            .filter_map(|c| c.1)
+            .find(|&k| k as usize >= nn)
+        {
+            return Err(MeshError {
+                path: self.path.to_path_buf(),
+                at: self.show(poly.at),
+                message: format!("a face refers to normal {k}, but there are {nn}"),
+            });
+        }
+        s.points.clear();
+        s.points
+            .extend(s.ring.iter().map(|c| self.mesh.positions[c.0 as usize]));
+        s.tris.clear();
+        let cut = triangulate(&s.points, &mut s.tris);
+        if cut == Cut::Tangled {
+            let at = self.show(poly.at);
+            self.warn(
+                Tolerance::TangledPolygon,
+                at,
+                format!(
+                    "a concave polygon of {} corners that ear clipping cannot cut (it \
+                         crosses itself, or has over {} corners) is fanned from its first corner",
+                    s.ring.len(),
+                    super::polygon::MAX_EAR_CORNERS
+                ),
+            );
+        }
+        let before = self.mesh.faces.len();
+        for t in &s.tris {
+            let [a, b, c] = t.map(|k| s.points[k]);
+            if (b - a).cross(c - a).length_squared() == 0.0 {
+                continue;
+            }
+            let normals = normals_usable.then(|| {
+                t.map(|k| {
+                    let n = s.ring[k].1.unwrap_or(SMOOTH);
+                    if n != SMOOTH && bad.normal[n as usize] {
+                        SMOOTH
+                    } else {
+                        n
+                    }
+                })
+            });
+            self.mesh.faces.push(Face {
+                positions: t.map(|k| s.ring[k].0),
+                normals,
+                material: poly.material,
+            });
+        }
+        if self.mesh.faces.len() == before {
+            let at = self.show(poly.at);
+            self.warn(
+                Tolerance::DegenerateFace,
+                at,
+                "a face without area (its corners lie on one line) dropped",
+            );
+        } else if normals_usable {
+            self.note_bad_normals(&s.ring, &bad.normal, poly.at);
+        }
+        Ok(())
     }
 
     fn note_bad_normals(&mut self, ring: &[(u32, Option<u32>)], bad: &[bool], at: Loc) {
