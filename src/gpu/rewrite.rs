@@ -145,20 +145,7 @@ pub fn device_loads(words: &[u32]) -> Vec<u32> {
         .filter(|(op, o)| *op == OP_ACCESS_CHAIN && o[2] == marker)
         .map(|(_, o)| o[1])
         .collect();
-    // The load functions: where each starts, its result type.
-    let mut loads = Vec::new();
-    let mut start = None;
-    for (i, &(op, o)) in list.iter().enumerate() {
-        match op {
-            OP_FUNCTION => start = Some((i, o[0])),
-            OP_ACCESS_CHAIN if chains.contains(&o[2]) => {
-                if let Some(f) = start.take() {
-                    loads.push(f);
-                }
-            }
-            _ => {}
-        }
-    }
+    let loads = load_functions(&list, &chains);
     let mut bound = words[3];
     let mut fresh = || {
         bound += 1;
@@ -186,11 +173,7 @@ pub fn device_loads(words: &[u32]) -> Vec<u32> {
             });
         }
     }
-    let psb = spirv::StorageClass::PhysicalStorageBuffer as u32;
     let mut out = words[..HEADER_WORDS].to_vec();
-    let emit = |out: &mut Vec<u32>, op: spirv::Op, operands: &[u32]| {
-        push_instruction(out, op as u32, operands);
-    };
     let mut capabilities = false;
     let mut extension = false;
     let mut decorations = false;
@@ -219,22 +202,7 @@ pub fn device_loads(words: &[u32]) -> Vec<u32> {
         if op == OP_DECORATE && !decorations {
             decorations = true;
             for a in &arrays {
-                let stride = spirv::Decoration::ArrayStride as u32;
-                emit(
-                    &mut out,
-                    spirv::Op::Decorate,
-                    &[a.runtime_array, stride, a.bytes],
-                );
-                let block = spirv::Decoration::Block as u32;
-                emit(&mut out, spirv::Op::Decorate, &[a.block, block]);
-                let offset = spirv::Decoration::Offset as u32;
-                emit(
-                    &mut out,
-                    spirv::Op::MemberDecorate,
-                    &[a.block, 0, offset, 0],
-                );
-                let readonly = spirv::Decoration::NonWritable as u32;
-                emit(&mut out, spirv::Op::MemberDecorate, &[a.block, 0, readonly]);
+                a.decorate(&mut out);
             }
         }
         if op == OP_FUNCTION && !types {
@@ -242,53 +210,15 @@ pub fn device_loads(words: &[u32]) -> Vec<u32> {
             emit(&mut out, spirv::Op::TypeInt, &[u64_type, 64, 0]);
             emit(&mut out, spirv::Op::Constant, &[u32_type, zero, 0]);
             for a in &arrays {
-                emit(
-                    &mut out,
-                    spirv::Op::TypeRuntimeArray,
-                    &[a.runtime_array, a.element],
-                );
-                emit(&mut out, spirv::Op::TypeStruct, &[a.block, a.runtime_array]);
-                emit(
-                    &mut out,
-                    spirv::Op::TypePointer,
-                    &[a.block_pointer, psb, a.block],
-                );
-                emit(
-                    &mut out,
-                    spirv::Op::TypePointer,
-                    &[a.element_pointer, psb, a.element],
-                );
+                a.declare(&mut out);
             }
         }
         if let Some(&(_, ty)) = loads.iter().find(|l| l.0 == at) {
             let a = arrays.iter().find(|a| a.element == ty).expect("listed");
+            let ids = [fresh(), fresh(), fresh(), fresh(), fresh()];
             let (_, base) = list[at + 1];
             let (_, index) = list[at + 2];
-            let [label, address, block, element, value] =
-                [fresh(), fresh(), fresh(), fresh(), fresh()];
-            emit(&mut out, spirv::Op::Function, o);
-            emit(&mut out, spirv::Op::FunctionParameter, base);
-            emit(&mut out, spirv::Op::FunctionParameter, index);
-            emit(&mut out, spirv::Op::Label, &[label]);
-            emit(&mut out, spirv::Op::Bitcast, &[u64_type, address, base[1]]);
-            emit(
-                &mut out,
-                spirv::Op::ConvertUToPtr,
-                &[a.block_pointer, block, address],
-            );
-            emit(
-                &mut out,
-                spirv::Op::AccessChain,
-                &[a.element_pointer, element, block, zero, index[1]],
-            );
-            let aligned = spirv::MemoryAccess::ALIGNED.bits();
-            emit(
-                &mut out,
-                spirv::Op::Load,
-                &[ty, value, element, aligned, a.bytes],
-            );
-            emit(&mut out, spirv::Op::ReturnValue, &[value]);
-            emit(&mut out, spirv::Op::FunctionEnd, &[]);
+            a.load_function(&mut out, [o, base, index], ids, [u64_type, zero]);
             while list[at].0 != OP_FUNCTION_END {
                 at += 1;
             }
@@ -324,6 +254,113 @@ struct DeviceArray {
     block: u32,
     block_pointer: u32,
     element_pointer: u32,
+}
+
+/// The load functions of `list`: where each starts, and its result type;
+/// a load function is one whose first access chain indexes one of `chains`.
+fn load_functions(list: &[(u32, &[u32])], chains: &HashSet<u32>) -> Vec<(usize, u32)> {
+    let mut loads = Vec::new();
+    let mut start = None;
+    for (i, &(op, o)) in list.iter().enumerate() {
+        match op {
+            OP_FUNCTION => start = Some((i, o[0])),
+            OP_ACCESS_CHAIN if chains.contains(&o[2]) => {
+                if let Some(f) = start.take() {
+                    loads.push(f);
+                }
+            }
+            _ => {}
+        }
+    }
+    loads
+}
+
+fn emit(out: &mut Vec<u32>, op: spirv::Op, operands: &[u32]) {
+    push_instruction(out, op as u32, operands);
+}
+
+impl DeviceArray {
+    /// Its stride, and its block's layout and read-only member.
+    fn decorate(&self, out: &mut Vec<u32>) {
+        let stride = spirv::Decoration::ArrayStride as u32;
+        emit(
+            out,
+            spirv::Op::Decorate,
+            &[self.runtime_array, stride, self.bytes],
+        );
+        let block = spirv::Decoration::Block as u32;
+        emit(out, spirv::Op::Decorate, &[self.block, block]);
+        let offset = spirv::Decoration::Offset as u32;
+        emit(out, spirv::Op::MemberDecorate, &[self.block, 0, offset, 0]);
+        let readonly = spirv::Decoration::NonWritable as u32;
+        emit(out, spirv::Op::MemberDecorate, &[self.block, 0, readonly]);
+    }
+
+    /// Its types: the runtime array, its block, and pointers to both in
+    /// physical storage.
+    fn declare(&self, out: &mut Vec<u32>) {
+        let psb = spirv::StorageClass::PhysicalStorageBuffer as u32;
+        emit(
+            out,
+            spirv::Op::TypeRuntimeArray,
+            &[self.runtime_array, self.element],
+        );
+        emit(
+            out,
+            spirv::Op::TypeStruct,
+            &[self.block, self.runtime_array],
+        );
+        emit(
+            out,
+            spirv::Op::TypePointer,
+            &[self.block_pointer, psb, self.block],
+        );
+        emit(
+            out,
+            spirv::Op::TypePointer,
+            &[self.element_pointer, psb, self.element],
+        );
+    }
+
+    /// A load function's new body: the function and its two parameters as
+    /// they were (`[function, base, index]` operands), then element
+    /// `index` read from the address `base`. `ids`: fresh ids for the
+    /// label, address, block, element and value; `types`: the u64 type
+    /// and the constant 0.
+    fn load_function(
+        &self,
+        out: &mut Vec<u32>,
+        given: [&[u32]; 3],
+        ids: [u32; 5],
+        types: [u32; 2],
+    ) {
+        let [function, base, index] = given;
+        let [label, address, block, element, value] = ids;
+        let [u64_type, zero] = types;
+        emit(out, spirv::Op::Function, function);
+        emit(out, spirv::Op::FunctionParameter, base);
+        emit(out, spirv::Op::FunctionParameter, index);
+        emit(out, spirv::Op::Label, &[label]);
+        emit(out, spirv::Op::Bitcast, &[u64_type, address, base[1]]);
+        emit(
+            out,
+            spirv::Op::ConvertUToPtr,
+            &[self.block_pointer, block, address],
+        );
+        emit(
+            out,
+            spirv::Op::AccessChain,
+            &[self.element_pointer, element, block, zero, index[1]],
+        );
+        let aligned = spirv::MemoryAccess::ALIGNED.bits();
+        emit(
+            out,
+            spirv::Op::Load,
+            &[self.element, value, element, aligned, self.bytes],
+        );
+        emit(out, spirv::Op::ReturnValue, &[value]);
+        emit(out, spirv::Op::FunctionEnd, &[]);
+    }
 }
 
 /// Floating-point arithmetic whose result a driver may fuse into a
