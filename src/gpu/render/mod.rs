@@ -24,6 +24,7 @@
 mod job;
 mod passes;
 mod plan;
+mod record;
 mod resources;
 
 use std::sync::atomic::{AtomicBool, Ordering};
