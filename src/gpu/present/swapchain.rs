@@ -228,123 +228,12 @@ impl Presenter {
         };
         let (image, extent, done) = (chain.images[index], chain.extent, chain.done[index]);
         let device = &self.shared.device;
-        // Centred; where the image is larger than the window (it shrank, the
-        // view at its new size is on its way), its centre.
-        let fit = |img: u32, win: u32| {
-            let n = img.min(win);
-            ((img - n) / 2, (win - n) / 2, n)
-        };
-        let (sx, dx, w) = fit(size[0], extent.width);
-        let (sy, dy, h) = fit(size[1], extent.height);
-        let range = vk::ImageSubresourceRange::default()
-            .aspect_mask(vk::ImageAspectFlags::COLOR)
-            .level_count(1)
-            .layer_count(1);
-        let barrier = |from, to, src, dst| {
-            vk::ImageMemoryBarrier::default()
-                .old_layout(from)
-                .new_layout(to)
-                .src_access_mask(src)
-                .dst_access_mask(dst)
-                .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
-                .image(image)
-                .subresource_range(range)
-        };
         submit_and_wait(
             &self.shared,
             (self.command, self.fence),
             (&[self.acquired], &[done]),
             WINDOW_WAIT_NS,
-            |cmd| {
-                // SAFETY: recording into the presenter's own command buffer;
-                // the image was acquired and its layout is set here.
-                unsafe {
-                    // The mean's shader and the host's writes before the copy.
-                    let written = vk::MemoryBarrier::default()
-                        .src_access_mask(vk::AccessFlags::SHADER_WRITE)
-                        .dst_access_mask(vk::AccessFlags::TRANSFER_READ);
-                    device.cmd_pipeline_barrier(
-                        cmd,
-                        vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::TRANSFER,
-                        vk::PipelineStageFlags::TRANSFER,
-                        vk::DependencyFlags::empty(),
-                        &[written],
-                        &[],
-                        &[barrier(
-                            vk::ImageLayout::UNDEFINED,
-                            vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-                            vk::AccessFlags::empty(),
-                            vk::AccessFlags::TRANSFER_WRITE,
-                        )],
-                    );
-                    device.cmd_clear_color_image(
-                        cmd,
-                        image,
-                        vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-                        &vk::ClearColorValue {
-                            float32: [0.0, 0.0, 0.0, 1.0],
-                        },
-                        &[range],
-                    );
-                    device.cmd_pipeline_barrier(
-                        cmd,
-                        vk::PipelineStageFlags::TRANSFER,
-                        vk::PipelineStageFlags::TRANSFER,
-                        vk::DependencyFlags::empty(),
-                        &[],
-                        &[],
-                        &[barrier(
-                            vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-                            vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-                            vk::AccessFlags::TRANSFER_WRITE,
-                            vk::AccessFlags::TRANSFER_WRITE,
-                        )],
-                    );
-                    if w > 0 && h > 0 {
-                        let region = vk::BufferImageCopy::default()
-                            .buffer_offset((u64::from(sy) * u64::from(size[0]) + u64::from(sx)) * 4)
-                            .buffer_row_length(size[0])
-                            .buffer_image_height(size[1])
-                            .image_subresource(
-                                vk::ImageSubresourceLayers::default()
-                                    .aspect_mask(vk::ImageAspectFlags::COLOR)
-                                    .layer_count(1),
-                            )
-                            .image_offset(vk::Offset3D {
-                                x: dx as i32,
-                                y: dy as i32,
-                                z: 0,
-                            })
-                            .image_extent(vk::Extent3D {
-                                width: w,
-                                height: h,
-                                depth: 1,
-                            });
-                        device.cmd_copy_buffer_to_image(
-                            cmd,
-                            buffer,
-                            image,
-                            vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-                            &[region],
-                        );
-                    }
-                    device.cmd_pipeline_barrier(
-                        cmd,
-                        vk::PipelineStageFlags::TRANSFER,
-                        vk::PipelineStageFlags::BOTTOM_OF_PIPE,
-                        vk::DependencyFlags::empty(),
-                        &[],
-                        &[],
-                        &[barrier(
-                            vk::ImageLayout::TRANSFER_DST_OPTIMAL,
-                            vk::ImageLayout::PRESENT_SRC_KHR,
-                            vk::AccessFlags::TRANSFER_WRITE,
-                            vk::AccessFlags::empty(),
-                        )],
-                    );
-                }
-            },
+            |cmd| record_copy(device, cmd, (buffer, size), (image, extent)),
         )?;
         let (chains, waits, indices) = ([chain.raw], [done], [index as u32]);
         let info = vk::PresentInfoKHR::default()
@@ -477,6 +366,126 @@ impl Drop for Presenter {
             device.destroy_fence(self.fence, None);
             device.destroy_command_pool(self.commands, None);
         }
+    }
+}
+
+/// Records the copy of the `size` image in `buffer` into the swapchain
+/// `image` of `extent`: cleared to black, the image centred (where it is
+/// larger than the window, which shrank and whose view at its new size is
+/// on its way, its centre), then made ready to present.
+fn record_copy(
+    device: &ash::Device,
+    cmd: vk::CommandBuffer,
+    (buffer, size): (vk::Buffer, [u32; 2]),
+    (image, extent): (vk::Image, vk::Extent2D),
+) {
+    let fit = |img: u32, win: u32| {
+        let n = img.min(win);
+        ((img - n) / 2, (win - n) / 2, n)
+    };
+    let (sx, dx, w) = fit(size[0], extent.width);
+    let (sy, dy, h) = fit(size[1], extent.height);
+    let range = vk::ImageSubresourceRange::default()
+        .aspect_mask(vk::ImageAspectFlags::COLOR)
+        .level_count(1)
+        .layer_count(1);
+    let barrier = |from, to, src, dst| {
+        vk::ImageMemoryBarrier::default()
+            .old_layout(from)
+            .new_layout(to)
+            .src_access_mask(src)
+            .dst_access_mask(dst)
+            .src_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+            .dst_queue_family_index(vk::QUEUE_FAMILY_IGNORED)
+            .image(image)
+            .subresource_range(range)
+    };
+    // SAFETY: recording into the presenter's own command buffer;
+    // the image was acquired and its layout is set here.
+    unsafe {
+        // The mean's shader and the host's writes before the copy.
+        let written = vk::MemoryBarrier::default()
+            .src_access_mask(vk::AccessFlags::SHADER_WRITE)
+            .dst_access_mask(vk::AccessFlags::TRANSFER_READ);
+        device.cmd_pipeline_barrier(
+            cmd,
+            vk::PipelineStageFlags::COMPUTE_SHADER | vk::PipelineStageFlags::TRANSFER,
+            vk::PipelineStageFlags::TRANSFER,
+            vk::DependencyFlags::empty(),
+            &[written],
+            &[],
+            &[barrier(
+                vk::ImageLayout::UNDEFINED,
+                vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                vk::AccessFlags::empty(),
+                vk::AccessFlags::TRANSFER_WRITE,
+            )],
+        );
+        device.cmd_clear_color_image(
+            cmd,
+            image,
+            vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+            &vk::ClearColorValue {
+                float32: [0.0, 0.0, 0.0, 1.0],
+            },
+            &[range],
+        );
+        device.cmd_pipeline_barrier(
+            cmd,
+            vk::PipelineStageFlags::TRANSFER,
+            vk::PipelineStageFlags::TRANSFER,
+            vk::DependencyFlags::empty(),
+            &[],
+            &[],
+            &[barrier(
+                vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                vk::AccessFlags::TRANSFER_WRITE,
+                vk::AccessFlags::TRANSFER_WRITE,
+            )],
+        );
+        if w > 0 && h > 0 {
+            let region = vk::BufferImageCopy::default()
+                .buffer_offset((u64::from(sy) * u64::from(size[0]) + u64::from(sx)) * 4)
+                .buffer_row_length(size[0])
+                .buffer_image_height(size[1])
+                .image_subresource(
+                    vk::ImageSubresourceLayers::default()
+                        .aspect_mask(vk::ImageAspectFlags::COLOR)
+                        .layer_count(1),
+                )
+                .image_offset(vk::Offset3D {
+                    x: dx as i32,
+                    y: dy as i32,
+                    z: 0,
+                })
+                .image_extent(vk::Extent3D {
+                    width: w,
+                    height: h,
+                    depth: 1,
+                });
+            device.cmd_copy_buffer_to_image(
+                cmd,
+                buffer,
+                image,
+                vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                &[region],
+            );
+        }
+        device.cmd_pipeline_barrier(
+            cmd,
+            vk::PipelineStageFlags::TRANSFER,
+            vk::PipelineStageFlags::BOTTOM_OF_PIPE,
+            vk::DependencyFlags::empty(),
+            &[],
+            &[],
+            &[barrier(
+                vk::ImageLayout::TRANSFER_DST_OPTIMAL,
+                vk::ImageLayout::PRESENT_SRC_KHR,
+                vk::AccessFlags::TRANSFER_WRITE,
+                vk::AccessFlags::empty(),
+            )],
+        );
     }
 }
 
