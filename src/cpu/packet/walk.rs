@@ -228,7 +228,6 @@ pub(super) fn traverse_with<const SIMD: u8, const ANY_HIT: bool>(
                 continue;
             }
             let index = (child & !wide::LEAF) as usize;
-            let leaf = &scene.wide.leaves[index];
             // The rays that reached it and have not found a hit nearer than
             // their entry since.
             let mut rays_in = hits[lane] & live;
@@ -238,111 +237,142 @@ pub(super) fn traverse_with<const SIMD: u8, const ANY_HIT: bool>(
                     rays_in &= !(late << (4 * h));
                 }
             }
-            if !simd_leaves {
-                // As a single ray's, one ray at a time.
-                while rays_in != 0 {
-                    let r = rays_in.trailing_zeros() as usize;
-                    rays_in &= rays_in - 1;
-                    let done = hit_leaf(scene, &rays[r], index, &mut best[r], ANY_HIT, &[], 0.0);
-                    best_t.0[r] = best[r].t;
-                    if done {
-                        live &= !(1 << r);
-                    }
-                }
-            } else if leaf.simd() {
-                // `hit_leaf`'s own first branch, inlined here: across an
-                // octet's rays where they share an axis order and enough
-                // of them came, else ray by ray.
-                #[cfg(target_arch = "x86_64")]
-                if SIMD >= AVX2 {
-                    for (g, k) in soa.k.iter().enumerate() {
-                        let m8 = rays_in >> (8 * g) & 255;
-                        let Some(k) = *k else { continue };
-                        if m8.count_ones() < OCTET_MIN_RAYS {
-                            continue;
-                        }
-                        rays_in &= !(m8 << (8 * g));
-                        // SAFETY: SIMD is AVX2 or more only in
-                        // `traverse_avx2` and `traverse_avx512`, which run
-                        // only where the CPU has AVX2 (AVX-512F implies it).
-                        let found = unsafe {
-                            hit_block_octet(leaf, &soa, k, g, m8, &mut best, &mut best_t)
-                        };
-                        if ANY_HIT {
-                            live &= !found;
-                        }
-                    }
-                }
-                while rays_in != 0 {
-                    let r = rays_in.trailing_zeros() as usize;
-                    rays_in &= rays_in - 1;
-                    if let Some((k, t, b1, b2)) = crate::cpu::simd::hit_block_f32(
-                        rays[r].origin,
-                        rays[r].k,
-                        rays[r].shear,
-                        leaf,
-                        best[r].t,
-                    ) {
-                        let prim = leaf.prims[k];
-                        best[r] = Hit { t, prim, b1, b2 };
-                        best_t.0[r] = t;
-                        if ANY_HIT {
-                            live &= !(1 << r);
-                        }
-                    }
-                }
-            } else {
-                // `hit_leaf`'s loop over the primitives, robust, taken
-                // primitive by primitive for all the rays (each ray still
-                // meets them in order): spheres four rays at a time.
-                for &prim in &scene.prim_refs[scene.wide.spans[index].range()] {
-                    if rays_in == 0 {
-                        break;
-                    }
-                    let index = (prim & !SPHERE_BIT) as usize;
-                    if prim & SPHERE_BIT != 0 {
-                        let t = hit_sphere_rays(&soa, &scene.spheres[index], &best_t);
-                        let mut hit = rays_in;
-                        while hit != 0 {
-                            let r = hit.trailing_zeros() as usize;
-                            hit &= hit - 1;
-                            if t.0[r] < best[r].t {
-                                best[r] = Hit {
-                                    t: t.0[r],
-                                    prim,
-                                    b1: 0.0,
-                                    b2: 0.0,
-                                };
-                                best_t.0[r] = t.0[r];
-                                if ANY_HIT {
-                                    live &= !(1 << r);
-                                    rays_in &= !(1 << r);
-                                }
-                            }
-                        }
-                    } else {
-                        let tri = &scene.triangles[index];
-                        let mut each = rays_in;
-                        while each != 0 {
-                            let r = each.trailing_zeros() as usize;
-                            each &= each - 1;
-                            let (t, b1, b2) = hit_triangle(&rays[r], tri, best[r].t);
-                            if t < best[r].t {
-                                best[r] = Hit { t, prim, b1, b2 };
-                                best_t.0[r] = t;
-                                if ANY_HIT {
-                                    live &= !(1 << r);
-                                    rays_in &= !(1 << r);
-                                }
-                            }
-                        }
-                    }
-                }
-            }
+            let packet = Packet {
+                rays,
+                soa: &soa,
+                best: &mut best,
+                best_t: &mut best_t,
+                live: &mut live,
+            };
+            test_leaf::<SIMD, ANY_HIT>(scene, index, rays_in, simd_leaves, packet);
             if live == 0 {
                 return best;
             }
         }
     }
     best
+}
+
+/// One packet's state as a leaf is tested: its rays, their lanes, each
+/// ray's hit so far (and its distance in lanes), and the rays still looking.
+struct Packet<'a> {
+    rays: &'a [Ray<f32>; WIDTH],
+    soa: &'a Soa,
+    best: &'a mut [Hit<f32>; WIDTH],
+    best_t: &'a mut Lanes,
+    live: &'a mut u32,
+}
+
+/// The rays `rays_in` against leaf `index`'s primitives: as one SIMD block
+/// where `simd_leaves` and the leaf is one (an octet of rays at a time
+/// where they share an axis order, else ray by ray), each ray alone where
+/// not `simd_leaves`, else primitive by primitive for all of them.
+#[inline(always)]
+fn test_leaf<const SIMD: u8, const ANY_HIT: bool>(
+    scene: &CpuScene<f32>,
+    index: usize,
+    mut rays_in: u32,
+    simd_leaves: bool,
+    p: Packet,
+) {
+    let leaf = &scene.wide.leaves[index];
+    if !simd_leaves {
+        // As a single ray's, one ray at a time.
+        while rays_in != 0 {
+            let r = rays_in.trailing_zeros() as usize;
+            rays_in &= rays_in - 1;
+            let done = hit_leaf(scene, &p.rays[r], index, &mut p.best[r], ANY_HIT, &[], 0.0);
+            p.best_t.0[r] = p.best[r].t;
+            if done {
+                *p.live &= !(1 << r);
+            }
+        }
+    } else if leaf.simd() {
+        // `hit_leaf`'s own first branch, inlined here: across an
+        // octet's rays where they share an axis order and enough
+        // of them came, else ray by ray.
+        #[cfg(target_arch = "x86_64")]
+        if SIMD >= AVX2 {
+            for (g, k) in p.soa.k.iter().enumerate() {
+                let m8 = rays_in >> (8 * g) & 255;
+                let Some(k) = *k else { continue };
+                if m8.count_ones() < OCTET_MIN_RAYS {
+                    continue;
+                }
+                rays_in &= !(m8 << (8 * g));
+                // SAFETY: SIMD is AVX2 or more only in
+                // `traverse_avx2` and `traverse_avx512`, which run
+                // only where the CPU has AVX2 (AVX-512F implies it).
+                let found = unsafe { hit_block_octet(leaf, p.soa, k, g, m8, p.best, p.best_t) };
+                if ANY_HIT {
+                    *p.live &= !found;
+                }
+            }
+        }
+        while rays_in != 0 {
+            let r = rays_in.trailing_zeros() as usize;
+            rays_in &= rays_in - 1;
+            if let Some((k, t, b1, b2)) = crate::cpu::simd::hit_block_f32(
+                p.rays[r].origin,
+                p.rays[r].k,
+                p.rays[r].shear,
+                leaf,
+                p.best[r].t,
+            ) {
+                let prim = leaf.prims[k];
+                p.best[r] = Hit { t, prim, b1, b2 };
+                p.best_t.0[r] = t;
+                if ANY_HIT {
+                    *p.live &= !(1 << r);
+                }
+            }
+        }
+    } else {
+        // `hit_leaf`'s loop over the primitives, robust, taken
+        // primitive by primitive for all the rays (each ray still
+        // meets them in order): spheres four rays at a time.
+        for &prim in &scene.prim_refs[scene.wide.spans[index].range()] {
+            if rays_in == 0 {
+                break;
+            }
+            let index = (prim & !SPHERE_BIT) as usize;
+            if prim & SPHERE_BIT != 0 {
+                let t = hit_sphere_rays(p.soa, &scene.spheres[index], p.best_t);
+                let mut hit = rays_in;
+                while hit != 0 {
+                    let r = hit.trailing_zeros() as usize;
+                    hit &= hit - 1;
+                    if t.0[r] < p.best[r].t {
+                        p.best[r] = Hit {
+                            t: t.0[r],
+                            prim,
+                            b1: 0.0,
+                            b2: 0.0,
+                        };
+                        p.best_t.0[r] = t.0[r];
+                        if ANY_HIT {
+                            *p.live &= !(1 << r);
+                            rays_in &= !(1 << r);
+                        }
+                    }
+                }
+            } else {
+                let tri = &scene.triangles[index];
+                let mut each = rays_in;
+                while each != 0 {
+                    let r = each.trailing_zeros() as usize;
+                    each &= each - 1;
+                    let (t, b1, b2) = hit_triangle(&p.rays[r], tri, p.best[r].t);
+                    if t < p.best[r].t {
+                        p.best[r] = Hit { t, prim, b1, b2 };
+                        p.best_t.0[r] = t;
+                        if ANY_HIT {
+                            *p.live &= !(1 << r);
+                            rays_in &= !(1 << r);
+                        }
+                    }
+                }
+            }
+        }
+    }
 }
