@@ -525,3 +525,68 @@ fn only_the_driver_profile_names_drivers() {
     }
     assert!(offenders.is_empty(), "{offenders:?}");
 }
+
+/// Functions a reader can hold: none past 160 lines of source, but the
+/// data tables (the check suite's list of cases).
+#[test]
+fn no_function_is_past_160_lines() {
+    const TABLES: [&str; 1] = ["src/suites/check/suite.rs: cases"];
+    let mut files = Vec::new();
+    sources(&common::repo_path("src"), &mut files);
+    let mut long = Vec::new();
+    for file in &files {
+        let text = std::fs::read_to_string(file).expect("read source");
+        let lines: Vec<&str> = text.lines().collect();
+        for (i, line) in lines.iter().enumerate() {
+            let Some((indent, name)) = fn_start(line) else {
+                continue;
+            };
+            let end = lines[i + 1..]
+                .iter()
+                .position(|l| l.strip_prefix(indent) == Some("}"))
+                .map_or(lines.len(), |k| i + 1 + k);
+            let n = end - i + 1;
+            let rel = file
+                .strip_prefix(common::repo_path(""))
+                .unwrap_or(file)
+                .display()
+                .to_string();
+            let id = format!("{rel}: {name}");
+            if n > 160 && !TABLES.contains(&id.as_str()) {
+                long.push(format!("{id} ({n} lines)"));
+            }
+        }
+    }
+    assert!(long.is_empty(), "split these: {long:?}");
+}
+
+/// `fn name(` at the start of a line (after its indent and visibility),
+/// with a body to follow: the indent and the name.
+fn fn_start(line: &str) -> Option<(&str, &str)> {
+    let rest = line.trim_start();
+    let indent = &line[..line.len() - rest.len()];
+    let mut words = rest.split_whitespace();
+    let mut word = words.next()?;
+    while matches!(word, "pub" | "const" | "unsafe" | "async" | "extern")
+        || word.starts_with("pub(")
+    {
+        word = words.next()?;
+    }
+    if word != "fn" || line.trim_end().ends_with(';') {
+        return None;
+    }
+    let name = words.next()?;
+    let name = &name[..name.find(['(', '<']).unwrap_or(name.len())];
+    Some((indent, name))
+}
+
+#[test]
+fn the_function_reader_finds_starts_and_names() {
+    assert_eq!(
+        fn_start("    pub(super) fn run<'a>("),
+        Some(("    ", "run"))
+    );
+    assert_eq!(fn_start("pub const fn f() -> u32 {"), Some(("", "f")));
+    assert_eq!(fn_start("    fn g(&self) -> u32;"), None);
+    assert_eq!(fn_start("    let f = 1;"), None);
+}
