@@ -34,13 +34,13 @@
 //! ```
 //!
 //! The same scene on a Vulkan device against the CPU reference, judged as
-//! `glint check` judges its suite, is [`check::image_test`].
+//! `glint check` judges its suite, is [`suites::check::image_test`].
 //!
 //! ```text
 //! scene::read_scene -> Scene --bvh::Bvh::build--> Bvh
 //!   GPU: layout::GpuScene::pack -> gpu::GpuRenderer -> Image
 //!   CPU: cpu::render_rows (f32 twin of the shader, or f64 ground truth) -> Framebuffer
-//! encode::encode, framebuffer::write_bytes; compare::compare_images
+//! render::Sink: images::encode, images::framebuffer::write_bytes; images::compare
 //! ```
 
 pub mod bvh;
