@@ -12,25 +12,33 @@ use crate::Error;
 /// How many of the worst pixels a comparison keeps.
 pub const WORST_PIXELS: usize = 10;
 
+/// One pixel where two images differ.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PixelDiff {
+    /// Column, from 0 at the left.
     pub x: u32,
+    /// Row, from 0 at the top.
     pub y: u32,
     /// Both values in levels (0-255; fractional for float images).
     pub a: [f64; 3],
+    /// The second image's value, as `a`.
     pub b: [f64; 3],
     /// Largest channel difference.
     pub diff: f64,
 }
 
+/// How two images of one size differ.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Comparison {
+    /// Image width.
     pub width: u32,
+    /// Image height.
     pub height: u32,
     /// Largest per-channel absolute difference, in levels.
     pub max_abs: f64,
     /// Mean per-channel absolute difference, in levels.
     pub mean_abs: f64,
+    /// The threshold asked for, in levels.
     pub threshold: f64,
     /// Pixels whose largest channel difference exceeds `threshold`.
     pub over_threshold: usize,
@@ -149,6 +157,7 @@ fn compare_levels(
     }
 }
 
+/// The mean FLIP error (perceived difference, 0-1) of two 8-bit images of one size.
 pub fn flip_mean(a: &RgbImage, b: &RgbImage) -> f32 {
     if a.width() == 0 || a.height() == 0 {
         return 0.0;

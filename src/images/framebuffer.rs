@@ -9,9 +9,12 @@ use image::{DynamicImage, RgbImage};
 
 use crate::Error;
 
+/// A float image: linear RGB per pixel, unclamped as rendered.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Framebuffer {
+    /// Width in pixels.
     pub width: u32,
+    /// Height in pixels.
     pub height: u32,
     /// Row-major, row 0 at the top.
     pub pixels: Vec<[f32; 3]>,
@@ -74,11 +77,14 @@ pub use crate::images::encode::ImageFile;
 /// (`Framebuffer::to_rgb8`'s values) for an 8-bit file.
 #[derive(Clone, Debug, PartialEq)]
 pub enum Image {
+    /// Linear f32 RGB, as rendered.
     Float(Framebuffer),
+    /// 8-bit RGB, `to_u8` of each channel.
     Rgb8(RgbImage),
 }
 
 impl Image {
+    /// Width in pixels.
     pub fn width(&self) -> u32 {
         match self {
             Image::Float(fb) => fb.width,
@@ -86,6 +92,7 @@ impl Image {
         }
     }
 
+    /// Height in pixels.
     pub fn height(&self) -> u32 {
         match self {
             Image::Float(fb) => fb.height,

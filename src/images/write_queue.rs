@@ -25,6 +25,7 @@ pub struct Encoded {
 }
 
 impl Encoded {
+    /// `image`, to be encoded as `kind` by the first writer that needs it.
     pub fn new(image: Image, kind: ImageFile, options: EncodeOptions) -> Arc<Encoded> {
         Arc::new(Encoded {
             image,

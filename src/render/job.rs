@@ -44,8 +44,11 @@ pub enum Stop {
 /// What to render of a scene, and when to stop.
 #[derive(Clone, Copy, Debug)]
 pub struct Job<'a> {
+    /// The scene to render.
     pub scene: &'a Scene,
+    /// Which pixels, or frames.
     pub target: Target,
+    /// Once, or passes until a rule says stop.
     pub stop: Stop,
 }
 
@@ -167,6 +170,7 @@ impl Watch for Quiet {}
 pub struct Passes {
     /// The last pass's report.
     pub report: PassReport,
+    /// Why the passes stopped.
     pub stopped: Stopped,
     /// Every pass's report, in order.
     pub history: Vec<PassReport>,
@@ -191,13 +195,16 @@ pub struct Done {
 /// What an animation job did.
 #[derive(Clone, Debug, Default)]
 pub struct FramesDone {
-    /// The frames it was to render, inclusive; none (`first > last` is not
-    /// used) where `rendered + kept` is 0 and the part had no frame.
+    /// The first frame it was to render; `first`, `last` and every count
+    /// are 0 where a part had no frame to render.
     pub first: u32,
+    /// The last frame to render (inclusive).
     pub last: u32,
-    /// Frames rendered, written, and found already there whole and kept.
+    /// Frames rendered.
     pub rendered: u32,
+    /// Frames written by this job.
     pub written: u32,
+    /// Frames already there whole, kept (a requeued task of an array).
     pub kept: u32,
     /// The renders' timings, summed over the frames.
     pub render_timings: crate::timing::Timings,

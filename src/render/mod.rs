@@ -10,6 +10,8 @@
 //!   a time, adaptive blocks.
 //! - `region`: which pixels a render computes.
 
+#![warn(missing_docs)]
+
 mod frames;
 mod job;
 mod options;

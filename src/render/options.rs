@@ -8,6 +8,7 @@ use crate::gpu::{DeviceSelector, GpuRenderOptions};
 use crate::methods::Methods;
 use crate::scene::{Effects, Scene, Settings};
 
+/// Where a render runs.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Backend {
     /// The best hardware Vulkan device; the CPU reference when there is
@@ -16,17 +17,25 @@ pub enum Backend {
     /// A `device` asked for is always used.
     #[default]
     Auto,
+    /// A Vulkan device (`RenderOptions::device`, else the best one found); an error where there is none.
     Gpu,
+    /// The CPU reference, in `RenderOptions::precision`.
     Cpu,
 }
 
+/// How to render: the image, the backend and device, the methods, overrides
+/// of the scene's settings, and the GPU's tiles and passes.
 #[derive(Clone, Debug)]
 pub struct RenderOptions {
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
     /// Colour of rays that hit nothing, linear [0, 1].
     pub background: [f32; 3],
+    /// Where to render (`Auto`: a hardware GPU, else the CPU reference).
     pub backend: Backend,
+    /// The Vulkan device, by index or name; `None`: the best one found.
     pub device: Option<DeviceSelector>,
     /// CPU reference only.
     pub precision: Precision,
@@ -43,6 +52,7 @@ pub struct RenderOptions {
     /// GPU tile edge and pass budget; `None`: the device's driver profile
     /// (`gpu::driver`), which `gpu` then holds once a device is chosen.
     pub tile: Option<u32>,
+    /// Loop iterations one invocation may run per pass.
     pub pass_budget: Option<u32>,
     /// CPU f32: trace pixels in packets where they apply (`cpu::packet`);
     /// off, every ray alone, which keeps the shader's choice between two
@@ -51,6 +61,7 @@ pub struct RenderOptions {
     /// Keep built GPU pipelines on disk here (`gpu::cache::default_dir`);
     /// `None`: compile them every run.
     pub pipeline_cache: Option<std::path::PathBuf>,
+    /// The GPU's own options (pass timeout, list forms, ...).
     pub gpu: GpuRenderOptions,
     /// What the image is for: float values, or the 8-bit pixels of a PNG,
     /// JPEG or PPM, converted where they are made (by the device's pack

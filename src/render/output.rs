@@ -9,6 +9,7 @@ pub struct RenderOutput {
     /// Float values, or 8-bit pixels where the render was asked for them
     /// (`RenderOptions::pixels`).
     pub image: Image,
+    /// Each phase's time and the counts (rays, bytes read back, ...).
     pub timings: Timings,
     /// What rendered it, e.g. "GPU: llvmpipe (LLVM 15.0.6, 256 bits)" or "CPU reference (f32)".
     pub renderer: String,

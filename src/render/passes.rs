@@ -66,6 +66,7 @@ pub enum Stopped {
 /// Where a progressive render stands after a pass.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PassReport {
+    /// Passes so far.
     pub passes: u32,
     /// The most samples any pixel has (all have as many without
     /// `adaptive`).
@@ -80,12 +81,15 @@ pub struct PassReport {
     pub estimated_rmse: Option<f64>,
 }
 
+/// A progressive render's result.
 pub struct Progressive {
     /// The mean of every pass; timings summed over the passes.
     pub output: RenderOutput,
     /// The last pass's report.
     pub report: PassReport,
+    /// Why the passes stopped.
     pub stopped: Stopped,
+    /// Every pass's report, in order.
     pub history: Vec<PassReport>,
 }
 
@@ -145,10 +149,12 @@ pub struct Blocks {
     width: u32,
     height: u32,
     cols: u32,
+    /// Per block, row by row: whether the next pass renders it.
     pub active: Vec<bool>,
 }
 
 impl Blocks {
+    /// Every block of a `width` x `height` image, all active.
     pub fn all(width: u32, height: u32) -> Blocks {
         let cols = width.div_ceil(BLOCK_EDGE);
         let rows = height.div_ceil(BLOCK_EDGE);
@@ -164,10 +170,12 @@ impl Blocks {
         ((y / BLOCK_EDGE) * self.cols + x / BLOCK_EDGE) as usize
     }
 
+    /// Whether pixel (x, y)'s block is active.
     pub fn is_active(&self, x: u32, y: u32) -> bool {
         self.active[self.index(x, y)]
     }
 
+    /// Whether every block is active.
     pub fn all_active(&self) -> bool {
         self.active.iter().all(|&a| a)
     }
@@ -183,6 +191,7 @@ impl Blocks {
         w
     }
 
+    /// How many blocks are active.
     pub fn active_count(&self) -> usize {
         self.active.iter().filter(|&&a| a).count()
     }
@@ -223,6 +232,7 @@ pub struct Accumulator {
 }
 
 impl Accumulator {
+    /// No passes yet, for a `width` x `height` image.
     pub fn new(width: u32, height: u32) -> Accumulator {
         let n = width as usize * height as usize;
         Accumulator {

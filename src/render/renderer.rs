@@ -76,6 +76,9 @@ pub(super) struct Prepared {
 }
 
 impl Renderer {
+    /// Sets up the backend `options` chooses: the Vulkan device and its
+    /// pipeline cache, or the CPU reference; an error where `options` cannot
+    /// be met (no device for `Backend::Gpu`, f64 on a GPU, no pixels).
     pub fn new(options: &RenderOptions) -> Result<Renderer, Error> {
         Self::made(options, None)
     }
@@ -187,14 +190,18 @@ impl Renderer {
             .is_some_and(|c| c.load(Ordering::Relaxed))
     }
 
+    /// The options it was made with, the driver profile's tile and budget filled in.
     pub fn options(&self) -> &RenderOptions {
         &self.options
     }
 
+    /// Something the user should know of the backend's choice (why `auto`
+    /// rendered on the CPU reference).
     pub fn note(&self) -> Option<&str> {
         self.note.as_deref()
     }
 
+    /// Whether it renders on a Vulkan device.
     pub fn is_gpu(&self) -> bool {
         matches!(self.engine, Engine::Gpu { .. })
     }
@@ -237,6 +244,7 @@ impl Renderer {
         }
     }
 
+    /// Vulkan validation messages seen so far (0 without validation).
     pub fn validation_messages(&self) -> u32 {
         match &self.engine {
             Engine::Gpu { ctx, .. } => ctx.validation_messages(),
@@ -640,10 +648,13 @@ pub fn render(
 
 /// A probe result and what produced it.
 pub struct Probed<T> {
+    /// What the probe found.
     pub value: T,
     /// As `RenderOutput::renderer`.
     pub renderer: String,
+    /// As `RenderOutput::note`.
     pub note: Option<String>,
+    /// As `RenderOutput::validation_messages`.
     pub validation_messages: u32,
 }
 

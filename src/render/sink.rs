@@ -22,7 +22,9 @@ pub enum Sink {
     /// pixels, a part as its stamped part file beside `path`
     /// (`out.part03-of-16.png`), each for `glint stitch`.
     File {
+        /// The image file.
         path: PathBuf,
+        /// JPEG quality and PNG compression.
         encode: EncodeOptions,
     },
     /// PNG on standard output (a crop as its part image).
@@ -30,8 +32,11 @@ pub enum Sink {
     /// An animation's frames, `000.jpg`, `001.jpg`, ... in `dir` (made
     /// when missing), each written atomically.
     Frames {
+        /// The frame directory.
         dir: PathBuf,
+        /// The frames' image format.
         format: ImageFile,
+        /// JPEG quality and PNG compression.
         encode: EncodeOptions,
     },
 }

@@ -13,13 +13,15 @@ use std::path::Path;
 
 use crate::Error;
 
-// JPEG quality used when the caller does not choose one.
+/// JPEG quality used when the caller does not choose one.
 pub const DEFAULT_JPEG_QUALITY: u8 = 95;
 
 /// The image files glint reads and writes, by extension.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum ImageFile {
+    /// PNG: 8-bit RGB, lossless.
     Png,
+    /// JPEG: 8-bit RGB, 4:4:4, at a quality.
     Jpeg,
     /// OpenEXR: linear f32 RGB, no quantization.
     Exr,
@@ -87,6 +89,7 @@ impl PngCompression {
 pub struct EncodeOptions {
     /// 1-100.
     pub jpeg_quality: u8,
+    /// PNG's deflate effort (the pixels are the same).
     pub png: PngCompression,
 }
 
@@ -112,8 +115,11 @@ impl EncodeOptions {
 /// Pixels as an encoder reads them: rows top to bottom, channels packed.
 #[derive(Clone, Copy)]
 pub struct Pixels<'a> {
+    /// The pixels' bytes.
     pub bytes: &'a [u8],
+    /// Width in pixels.
     pub width: u32,
+    /// Height in pixels.
     pub height: u32,
     /// Rgb8, Rgba8, Rgb32F or Rgba32F.
     pub color: ExtendedColorType,

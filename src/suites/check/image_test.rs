@@ -18,13 +18,17 @@ use crate::Error;
 /// How to test: on which device, how close, and where a failure's images go.
 #[derive(Clone, Debug)]
 pub struct ImageTest {
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
     /// The Vulkan device; `None`: the best one found (lavapipe counts).
     pub device: Option<DeviceSelector>,
+    /// How close the device must come to the CPU reference.
     pub tolerance: Tolerance,
     /// Where a failure's images go, named after `name`; `None`: nowhere.
     pub out: Option<PathBuf>,
+    /// The test's name: the failure images' file names start with it.
     pub name: String,
 }
 
@@ -51,6 +55,7 @@ pub struct Verdict {
     /// The device's image against the f32 twin, which follows the shader
     /// operation for operation, and against the f64 truth.
     pub against_twin: Comparison,
+    /// The device's image against the f64 truth.
     pub against_truth: Comparison,
     /// Pixels that may be more than one 8-bit level off the twin.
     pub allowed: usize,
@@ -61,6 +66,7 @@ pub struct Verdict {
 }
 
 impl Verdict {
+    /// Whether the device's image met the tolerance.
     pub fn passed(&self) -> bool {
         self.failure.is_none()
     }

@@ -4,6 +4,8 @@
 //! with what glint chose for the device, the time and the rays per second.
 //! `report` prints the table and writes JUnit XML.
 
+#![warn(missing_docs)]
+
 mod image_test;
 mod judge;
 pub mod report;
@@ -27,6 +29,7 @@ pub use suite::{Case, Level, Tolerance};
 /// What `glint check` was asked for.
 #[derive(Clone, Debug)]
 pub struct CheckOptions {
+    /// How much of the suite, and how large.
     pub level: Level,
     /// Where the images of failed cases go (device image, CPU twin's image,
     /// and the difference as a heat map).
@@ -51,25 +54,32 @@ enum Kind {
 /// One case on one device.
 #[derive(Clone, Debug)]
 pub struct CaseResult {
+    /// The case's name.
     pub name: String,
+    /// What it exercises, in a few words.
     pub exercises: String,
     /// The shader variant: its feature set and how its lists were bound.
     pub variant: String,
     /// Pixels more than one level off the f32 twin, and how many may be.
     pub off: usize,
+    /// How many pixels may be more than one level off the twin.
     pub allowed: usize,
     /// The largest difference from the twin, in 8-bit levels.
     pub worst: f64,
+    /// FLIP mean against the f32 twin.
     pub flip_f32: f32,
+    /// FLIP mean against the f64 truth.
     pub flip_f64: f32,
     /// The device's render: dispatch time, and rays per second over it.
     pub time: Duration,
+    /// Rays a second on the device, where its time and rays were counted.
     pub rays_per_second: Option<f64>,
     /// Why it failed; `None`: it passed.
     pub failure: Option<String>,
 }
 
 impl CaseResult {
+    /// Whether the case met its tolerance.
     pub fn passed(&self) -> bool {
         self.failure.is_none()
     }
@@ -78,8 +88,11 @@ impl CaseResult {
 /// Everything checked on one device.
 #[derive(Clone, Debug)]
 pub struct DeviceReport {
+    /// The device checked.
     pub device: DeviceInfo,
+    /// Its limits, as glint reads them.
     pub limits: Option<DeviceLimits>,
+    /// Every case's result, in the suite's order.
     pub cases: Vec<CaseResult>,
     /// Time for the whole suite on this device, references included.
     pub total: Duration,
@@ -88,6 +101,7 @@ pub struct DeviceReport {
 }
 
 impl DeviceReport {
+    /// Whether every case passed.
     pub fn passed(&self) -> bool {
         self.cases.iter().all(CaseResult::passed)
     }

@@ -23,7 +23,9 @@ pub struct Tolerance {
     /// multiply-add, another `pow`) flips a hit or shadow verdict exactly on
     /// an edge.
     pub f32_fraction: f64,
+    /// At least this many pixels may be off, whatever the fraction.
     pub f32_min_pixels: usize,
+    /// The FLIP mean allowed against the twin.
     pub f32_flip: f32,
     /// Against the f64 reference (ground truth): the FLIP mean, or `None`
     /// where the case is about f32's limits and the difference is reported,
@@ -62,12 +64,17 @@ impl Tolerance {
 /// One scene of the suite.
 #[derive(Clone, Debug)]
 pub struct Case {
+    /// The case's name.
     pub name: String,
     /// What it exercises, in a few words.
     pub exercises: String,
+    /// The scene.
     pub scene: Scene,
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
+    /// How close the device must come.
     pub tolerance: Tolerance,
     /// Cap each storage binding at this many bytes (the split-binding
     /// case where the device's own limits are beyond the suite's sizes).
