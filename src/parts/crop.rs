@@ -16,9 +16,13 @@ use crate::Error;
 /// `--pixelbounds`), row 0 at the top.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Crop {
+    /// The first column inside.
     pub x0: u32,
+    /// The first row inside.
     pub y0: u32,
+    /// The first column past it.
     pub x1: u32,
+    /// The first row past it.
     pub y1: u32,
 }
 
@@ -51,6 +55,7 @@ impl Crop {
         Ok(())
     }
 
+    /// Whether pixel (x, y) is inside.
     pub fn contains(&self, x: u32, y: u32) -> bool {
         (self.x0..self.x1).contains(&x) && (self.y0..self.y1).contains(&y)
     }
@@ -60,6 +65,7 @@ impl Crop {
         [self.x0, self.y0, self.x1 - self.x0, self.y1 - self.y0]
     }
 
+    /// How many pixels it holds.
     pub fn pixels(&self) -> u64 {
         u64::from(self.x1 - self.x0) * u64::from(self.y1 - self.y0)
     }
@@ -138,6 +144,7 @@ fn part_image(fb: &Framebuffer, crop: &Crop, float: bool) -> image::DynamicImage
 /// What `stitch` made of its parts.
 #[derive(Debug)]
 pub struct Stitched {
+    /// The joined image.
     pub image: Framebuffer,
     /// Whether every part was float (EXR): then `image` holds their float
     /// values, else 8-bit values v / 255.
@@ -145,6 +152,7 @@ pub struct Stitched {
     /// Pixels held by more than one part, and how many of those disagree
     /// (the later part wins).
     pub overlapping: u64,
+    /// Of the overlapping pixels, how many the parts disagree on.
     pub disagreeing: u64,
 }
 

@@ -12,16 +12,21 @@ use std::fmt;
 /// (pixel `y * width + x`).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct Span {
+    /// The first pixel.
     pub start: u64,
+    /// The first pixel past it.
     pub end: u64,
+    /// The image's width, to place the pixels in rows.
     pub width: u32,
 }
 
 impl Span {
+    /// How many pixels it holds.
     pub fn pixels(&self) -> u64 {
         self.end - self.start
     }
 
+    /// Whether pixel (x, y) is in the span.
     pub fn contains(&self, x: u32, y: u32) -> bool {
         let i = u64::from(y) * u64::from(self.width) + u64::from(x);
         x < self.width && (self.start..self.end).contains(&i)
@@ -82,7 +87,9 @@ pub const GRAIN_ROWS: u32 = 8;
 /// pixels).
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Costs {
+    /// The image's width.
     pub width: u32,
+    /// Per row, the cost of each of its pixels.
     pub per_pixel: Vec<u64>,
 }
 

@@ -11,6 +11,8 @@
 //! - here: the index's source, part file names, the requeue check, and
 //!   finding, waiting for and vetting the parts of a stitch.
 
+#![warn(missing_docs)]
+
 pub mod crop;
 pub mod cut;
 pub mod frames;
@@ -30,6 +32,7 @@ pub const MAX_PARTS: u32 = 1_000_000;
 /// Where a task's index comes from.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum IndexFrom {
+    /// Given in the argument (`--part 3/16`).
     Given(u32),
     /// Slurm job arrays: `SLURM_ARRAY_TASK_ID`.
     Slurm,
@@ -45,18 +48,23 @@ const K8S_VAR: &str = "JOB_COMPLETION_INDEX";
 /// `--part I/N`, `slurm/N`, `k8s/N` or `env/N` as given.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PartArg {
+    /// Where the index comes from.
     pub from: IndexFrom,
+    /// How many parts the render is split into.
     pub count: u32,
 }
 
 /// Part `index` (0-based) of `count`.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub struct PartOf {
+    /// This part, counted from 0.
     pub index: u32,
+    /// How many parts the render is split into.
     pub count: u32,
 }
 
 impl PartArg {
+    /// Reads `I/N`, `slurm/N`, `k8s/N` or `env/N`; the message says what is expected.
     pub fn parse(s: &str) -> Result<PartArg, String> {
         let usage = || {
             format!(

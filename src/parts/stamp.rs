@@ -22,15 +22,20 @@ pub const KEY: &str = "glint-part";
 pub struct Stamp {
     /// `render_digest` of the render the part belongs to.
     pub render: String,
+    /// This part, counted from 0.
     pub index: u32,
+    /// How many parts the render is split into.
     pub count: u32,
+    /// The pixels it holds.
     pub span: Span,
+    /// The image's height.
     pub height: u32,
     /// What rendered it (`Renderer::name`).
     pub renderer: String,
 }
 
 impl Stamp {
+    /// The stamp as the text a part file carries.
     pub fn to_text(&self) -> String {
         format!(
             "render {}\npart {} of {}\npixels {}-{} of {}x{}\nrenderer {}\n",
@@ -47,6 +52,7 @@ impl Stamp {
         )
     }
 
+    /// A stamp read back from `to_text`'s text; `None` where it is not one.
     pub fn parse(text: &str) -> Option<Stamp> {
         let mut render = None;
         let (mut part, mut pixels, mut renderer) = (None, None, None);
