@@ -22,30 +22,33 @@ use super::rewrite::{device_loads, no_contraction, unfill_local_arrays};
 use crate::features::Features;
 use crate::methods::Methods;
 
-/// The shader's pieces, by concept, each beside its CPU twin, in the order
-/// they are joined (a plain join: WGSL declarations may come in any order,
-/// and each piece is whole declarations).
-pub const TRACE_PIECES: [&str; 7] = [
-    "layout", "sample", "hit", "scene", "traverse", "shade", "kernel",
-];
+/// Declares the shader's pieces once: their names, their texts, and the
+/// source they join into.
+macro_rules! trace_pieces {
+    ($($name:literal),+ $(,)?) => {
+        /// The shader's pieces, by concept, each beside its CPU twin, in the
+        /// order they are joined (a plain join: WGSL declarations may come
+        /// in any order, and each piece is whole declarations).
+        pub const TRACE_PIECES: &[&str] = &[$($name),+];
 
-/// The shader source: the pieces joined, compiled into the binary.
-pub const TRACE_WGSL: &str = concat!(
-    include_str!("../../shaders/trace/layout.wgsl"),
-    include_str!("../../shaders/trace/sample.wgsl"),
-    include_str!("../../shaders/trace/hit.wgsl"),
-    include_str!("../../shaders/trace/scene.wgsl"),
-    include_str!("../../shaders/trace/traverse.wgsl"),
-    include_str!("../../shaders/trace/shade.wgsl"),
-    include_str!("../../shaders/trace/kernel.wgsl"),
-);
+        /// The shader source: the pieces joined, compiled into the binary.
+        pub const TRACE_WGSL: &str =
+            concat!($(include_str!(concat!("../../shaders/trace/", $name, ".wgsl"))),+);
+
+        /// Each piece's text, in `TRACE_PIECES`' order.
+        const TRACE_PIECE_TEXTS: &[&str] =
+            &[$(include_str!(concat!("../../shaders/trace/", $name, ".wgsl"))),+];
+    };
+}
+
+trace_pieces!("layout", "sample", "hit", "scene", "traverse", "shade", "kernel");
 const TRACE_PATH: &str = "shaders/trace/*.wgsl, joined";
 
 /// Where line `line` (1-based) of `TRACE_WGSL` comes from: the piece's
 /// file and its line there, for messages.
 pub fn trace_source_line(line: usize) -> Option<(String, usize)> {
     let mut first = 1;
-    for (name, text) in TRACE_PIECES.iter().zip(trace_piece_texts()) {
+    for (name, text) in TRACE_PIECES.iter().zip(TRACE_PIECE_TEXTS) {
         let lines = text.matches('\n').count();
         if line < first + lines {
             return Some((format!("shaders/trace/{name}.wgsl"), line - first + 1));
@@ -53,18 +56,6 @@ pub fn trace_source_line(line: usize) -> Option<(String, usize)> {
         first += lines;
     }
     None
-}
-
-fn trace_piece_texts() -> [&'static str; 7] {
-    [
-        include_str!("../../shaders/trace/layout.wgsl"),
-        include_str!("../../shaders/trace/sample.wgsl"),
-        include_str!("../../shaders/trace/hit.wgsl"),
-        include_str!("../../shaders/trace/scene.wgsl"),
-        include_str!("../../shaders/trace/traverse.wgsl"),
-        include_str!("../../shaders/trace/shade.wgsl"),
-        include_str!("../../shaders/trace/kernel.wgsl"),
-    ]
 }
 
 /// A naga message about the joined source, with the piece it points into.
@@ -367,8 +358,9 @@ mod tests {
     /// first line.
     #[test]
     fn the_pieces_join_in_order_and_lines_find_their_piece() {
-        let texts = trace_piece_texts();
+        let texts = TRACE_PIECE_TEXTS;
         assert_eq!(TRACE_WGSL, texts.concat());
+        assert_eq!(TRACE_PIECES.len(), texts.len());
         let mut line = 1;
         for (name, text) in TRACE_PIECES.iter().zip(texts) {
             let file = format!("shaders/trace/{name}.wgsl");
