@@ -1,13 +1,18 @@
 //! The Phong material, below both the scene parser and the model-file
 //! readers that make one.
 
+#![warn(missing_docs)]
+
 use glam::DVec3;
 
 /// Diffuse and specular reflectance with a Phong exponent, per channel.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Material {
+    /// Diffuse reflectance, per channel.
     pub kd: DVec3,
+    /// Specular reflectance, per channel (also the reflection weight).
     pub ks: DVec3,
+    /// The Phong exponent.
     pub shininess: f64,
 }
 

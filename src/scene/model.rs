@@ -4,6 +4,8 @@
 //! file's own numbers; the GPU packing (`layout`) and the CPU f32 path round
 //! them to f32 once, in one place each.
 
+#![warn(missing_docs)]
+
 use glam::DVec3;
 
 pub use super::diagnostic::Diagnostic;
@@ -11,10 +13,14 @@ pub use super::settings::{Effects, Settings};
 
 pub use crate::material::Material;
 
+/// A sphere (classic `sphere` block).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Sphere {
+    /// Its centre at the frame's time.
     pub center: DVec3,
+    /// Its radius.
     pub radius: f64,
+    /// Its material.
     pub material: Material,
     /// Scene units per second (extension `vel:`); zero for static spheres.
     pub velocity: DVec3,
@@ -24,15 +30,19 @@ pub struct Sphere {
 /// normalized: interpolation happens before normalization) and material.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Vertex {
+    /// The corner's position.
     pub position: DVec3,
+    /// The corner's shading normal, as written.
     pub normal: DVec3,
     /// Index into `Scene::materials`: a table, because a material per
     /// corner would be most of a big scene's memory (56 of 112 bytes).
     pub material: u32,
 }
 
+/// A triangle (classic `triangle` block, or a mesh's face).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Triangle {
+    /// Its three corners, in the file's order.
     pub vertices: [Vertex; 3],
     /// Scene units per second, the same for all three corners (extension `vel:`).
     pub velocity: DVec3,
@@ -46,21 +56,34 @@ pub enum LightShape {
     Point,
     /// A sphere of this radius about `position`, sampled as the disc it
     /// shows the shaded point.
-    Sphere { radius: f64 },
+    Sphere {
+        /// Its radius.
+        radius: f64,
+    },
     /// A parallelogram centred on `position` with these two edge vectors.
-    Rect { edge_u: DVec3, edge_v: DVec3 },
+    Rect {
+        /// One edge, centred on `position`.
+        edge_u: DVec3,
+        /// The other edge.
+        edge_v: DVec3,
+    },
 }
 
 impl LightShape {
+    /// Whether it is an area light (sampled by several shadow rays).
     pub fn is_area(&self) -> bool {
         !matches!(self, LightShape::Point)
     }
 }
 
+/// A light (classic `light` block): a point, or an area light (extensions).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Light {
+    /// Its position (an area light's centre).
     pub position: DVec3,
+    /// Its colour, per channel.
     pub color: DVec3,
+    /// What it emits from.
     pub shape: LightShape,
     /// Scene units per second (extension `vel:`).
     pub velocity: DVec3,
@@ -101,6 +124,7 @@ impl Light {
 /// classic camera (`Camera::CLASSIC`).
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CameraSpec {
+    /// Where the camera is.
     pub eye: DVec3,
     /// A point the camera looks at.
     pub look: DVec3,
@@ -151,6 +175,7 @@ impl CameraSpec {
         self.eye + Self::dir_to_world(basis, p)
     }
 
+    /// Direction `v` in camera space, in the world (`basis`: the camera's axes).
     pub fn dir_to_world(basis: &[DVec3; 3], v: DVec3) -> DVec3 {
         basis[0] * v.x + basis[1] * v.y + basis[2] * v.z
     }
@@ -161,21 +186,28 @@ impl CameraSpec {
 pub struct MeshInfo {
     /// The file as the scene names it.
     pub file: String,
+    /// Triangles it brought.
     pub triangles: usize,
     /// After its transforms.
     pub bounds: Bounds,
+    /// How long loading it took.
     pub load_time: std::time::Duration,
     /// What its loader tolerated (printed as warnings, counted by `info`).
     pub report: crate::mesh::report::Report,
 }
 
+/// A parsed scene, in f64, as the file wrote it.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Scene {
+    /// The global ambient colour, added once.
     pub ambient: DVec3,
+    /// Its spheres.
     pub spheres: Vec<Sphere>,
+    /// Its triangles, a mesh's included.
     pub triangles: Vec<Triangle>,
     /// The triangles' materials, indexed by `Vertex::material`.
     pub materials: Vec<Material>,
+    /// Its lights.
     pub lights: Vec<Light>,
     /// Render settings the file asks for (extensions; classic files have none).
     pub settings: Settings,
@@ -201,6 +233,7 @@ pub struct MaterialIds {
 }
 
 impl MaterialIds {
+    /// `m`'s index in `materials`, adding it where it is new.
     pub fn id(&mut self, materials: &mut Vec<Material>, m: Material) -> u32 {
         let key = m.key();
         if let Some((k, id)) = self.last {
@@ -224,27 +257,34 @@ pub const WARNINGS_KEPT: usize = 5;
 /// rendered right in f32 with a margin (`Scene::unresolvable`): 2^-20.
 pub const RESOLVABLE: f64 = 1.0 / 1_048_576.0;
 
-/// Geometry extents the renderers take as they are (`Scene::render_scale`).
+/// Geometry extents the renderers take as they are (`Scene::render_scale`):
+/// the smallest.
 pub const RENDER_SCALE_MIN: f64 = 1.0 / 1024.0;
+/// The largest extent taken as it is.
 pub const RENDER_SCALE_MAX: f64 = 16384.0;
 
 /// Axis-aligned bounds of a set of points, in f64.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Bounds {
+    /// The least corner.
     pub min: DVec3,
+    /// The greatest corner.
     pub max: DVec3,
 }
 
 impl Bounds {
+    /// Bounds of nothing: any point grows them to itself.
     pub const EMPTY: Bounds = Bounds {
         min: DVec3::splat(f64::INFINITY),
         max: DVec3::splat(f64::NEG_INFINITY),
     };
 
+    /// Whether they hold no point.
     pub fn is_empty(&self) -> bool {
         self.min.cmpgt(self.max).any()
     }
 
+    /// Bounds of both.
     pub fn union(self, other: Bounds) -> Bounds {
         Bounds {
             min: self.min.min(other.min),
@@ -252,6 +292,7 @@ impl Bounds {
         }
     }
 
+    /// These bounds and `p`.
     pub fn grow(self, p: DVec3) -> Bounds {
         Bounds {
             min: self.min.min(p),
@@ -259,10 +300,12 @@ impl Bounds {
         }
     }
 
+    /// The centre of the box.
     pub fn centroid(&self) -> DVec3 {
         (self.min + self.max) * 0.5
     }
 
+    /// The box's surface area (the SAH's cost measure).
     pub fn surface_area(&self) -> f64 {
         if self.is_empty() {
             return 0.0;
@@ -273,6 +316,7 @@ impl Bounds {
 }
 
 impl Sphere {
+    /// Its bounds at the frame's time.
     pub fn bounds(&self) -> Bounds {
         Bounds {
             min: self.center - DVec3::splat(self.radius),
@@ -289,6 +333,7 @@ impl Sphere {
 }
 
 impl Triangle {
+    /// Its bounds at the frame's time.
     pub fn bounds(&self) -> Bounds {
         self.vertices
             .iter()
@@ -436,6 +481,7 @@ impl Scene {
         out
     }
 
+    /// Spheres and triangles together.
     pub fn primitive_count(&self) -> usize {
         self.spheres.len() + self.triangles.len()
     }
