@@ -109,22 +109,33 @@ impl Gpu<'_> {
         let mut next_tile = tiles.iter();
         let mut free: Vec<usize> = (0..SLOTS).rev().collect();
         let cancelled = || cancel.is_some_and(|c| c.load(Ordering::Relaxed));
+        // A tile whose pass just ended and needs another, submitted first.
+        let mut again: Option<(usize, TileWork)> = None;
         loop {
-            // Fill every free slot with a new tile (none once cancelled:
+            // Then every free slot takes a new tile (none once cancelled:
             // the tiles in flight are only waited for).
-            while let (false, Some(&s)) = (cancelled(), free.last()) {
-                let Some(&rect) = next_tile.next() else {
-                    break;
-                };
-                free.pop();
-                let work = TileWork {
-                    rect,
-                    pass: 1,
-                    budget: options.pass_budget.max(1),
-                    left: rect.size[0] * rect.size[1],
-                    rays: [0; 2],
-                    // A tile of this render needed passes: so will this.
-                    resumable: start_resumable || needed_passes,
+            loop {
+                let (s, work) = match again.take() {
+                    Some(a) => a,
+                    None => {
+                        let (false, Some(&s)) = (cancelled(), free.last()) else {
+                            break;
+                        };
+                        let Some(&rect) = next_tile.next() else {
+                            break;
+                        };
+                        free.pop();
+                        let work = TileWork {
+                            rect,
+                            pass: 1,
+                            budget: options.pass_budget.max(1),
+                            left: rect.size[0] * rect.size[1],
+                            rays: [0; 2],
+                            // A tile of this render needed passes: so will this.
+                            resumable: start_resumable || needed_passes,
+                        };
+                        (s, work)
+                    }
                 };
                 let p = pipeline_for(&work, &mut timings)?;
                 let packing = res.pack.as_ref().filter(|_| pack).map(|p| (p, s));
@@ -177,18 +188,7 @@ impl Gpu<'_> {
                 free.push(s);
                 continue;
             }
-            let p = pipeline_for(&work, &mut timings)?;
-            let packing = res.pack.as_ref().filter(|_| pack).map(|p| (p, s));
-            self.submit_pass(
-                &mut res.slots[s],
-                p,
-                (lists, job),
-                work,
-                out_texels,
-                (target, packing),
-            )?;
-            tally.passes += 1;
-            in_flight.push_back((s, work));
+            again = Some((s, work));
         }
         if cancelled() {
             return Err(GpuError::Cancelled);
