@@ -10,7 +10,7 @@ use image::{DynamicImage, RgbImage};
 use crate::Error;
 
 /// A float image: linear RGB per pixel, unclamped as rendered.
-#[derive(Clone, Debug, PartialEq)]
+#[derive(Clone, Debug, Default, PartialEq)]
 pub struct Framebuffer {
     /// Width in pixels.
     pub width: u32,

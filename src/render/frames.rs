@@ -13,7 +13,7 @@ use super::output::RenderOutput;
 use super::region::Region;
 use super::renderer::Renderer;
 use crate::images::encode::EncodeOptions;
-use crate::images::framebuffer::{Framebuffer, Image, ImageFile};
+use crate::images::framebuffer::{Image, ImageFile};
 use crate::images::write_queue::{Encoded, WriteQueue};
 use crate::Error;
 
@@ -35,7 +35,7 @@ impl Renderer {
     ) -> Result<Done, Error> {
         let scene = job.scene;
         let Some([first, last]) = frames.share()? else {
-            return Ok(Done::frames(self.name(), FramesDone::default()));
+            return Ok(Done::frames(self.name(), FramesDone::default(), None));
         };
         std::fs::create_dir_all(dir).map_err(|error| Error::WriteFile {
             path: dir.to_path_buf(),
@@ -88,12 +88,9 @@ impl Renderer {
                     }
                     watch.frame(i, Some(&output));
                     done.render_timings.extend(&output.timings);
-                    let empty = Image::Float(Framebuffer {
-                        width: 0,
-                        height: 0,
-                        pixels: Vec::new(),
-                    });
-                    let image = std::mem::replace(&mut output.image, empty);
+                    // The image goes to the writers; the rest is kept for `Done`.
+                    let image =
+                        std::mem::replace(&mut output.image, Image::Float(Default::default()));
                     let frame = Encoded::new(image, format, *encode);
                     if !scene.has_motion() {
                         still = Some(frame.clone());
@@ -109,11 +106,6 @@ impl Renderer {
         done.written = written.load(Ordering::Relaxed);
         watch.frames_written(done.written);
         done.rendered = (last - first + 1) - done.kept;
-        let mut out = Done::frames(self.name(), done);
-        if let Some(output) = last_output {
-            let timings = out.output.timings.clone();
-            out.output = RenderOutput { timings, ..output };
-        }
-        Ok(out)
+        Ok(Done::frames(self.name(), done, last_output))
     }
 }

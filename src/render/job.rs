@@ -200,7 +200,8 @@ pub struct FramesDone {
     pub first: u32,
     /// The last frame to render (inclusive).
     pub last: u32,
-    /// Frames rendered.
+    /// Frames this job made, not kept: rendered, or (a scene with no
+    /// motion) the one image rendered for them all.
     pub rendered: u32,
     /// Frames written by this job.
     pub written: u32,
@@ -213,25 +214,27 @@ pub struct FramesDone {
 }
 
 impl Done {
-    /// An animation's result: `output` carries the renders' summed timings
-    /// and the last frame's render details; its image is empty (0x0), as
-    /// the frames are in their files.
-    pub(super) fn frames(renderer: String, frames: FramesDone) -> Done {
-        let output = RenderOutput {
-            image: crate::images::framebuffer::Image::Float(
-                crate::images::framebuffer::Framebuffer {
-                    width: 0,
-                    height: 0,
-                    pixels: Vec::new(),
-                },
-            ),
-            timings: frames.render_timings.clone(),
-            renderer,
-            note: None,
-            validation_messages: 0,
-            memory: Default::default(),
-            bvh: Default::default(),
-            samples: 0,
+    /// An animation's result: `output` is the last frame rendered (`last`;
+    /// a default one where every frame was kept) with the renders' summed
+    /// timings; its image is empty (0x0), as the frames are in their files.
+    pub(super) fn frames(renderer: String, frames: FramesDone, last: Option<RenderOutput>) -> Done {
+        let empty = crate::images::framebuffer::Image::Float(Default::default());
+        let output = match last {
+            Some(last) => RenderOutput {
+                image: empty,
+                timings: frames.render_timings.clone(),
+                ..last
+            },
+            None => RenderOutput {
+                image: empty,
+                timings: frames.render_timings.clone(),
+                renderer,
+                note: None,
+                validation_messages: 0,
+                memory: Default::default(),
+                bvh: Default::default(),
+                samples: 0,
+            },
         };
         Done {
             output,

@@ -113,7 +113,11 @@ impl Sink {
                 })?;
                 return Ok(Some(file));
             }
-            (Target::Part(_), None) | (Target::Frames(_), _) => self.check(target)?,
+            // Pairs `check` refuses (a part to standard output; frames go
+            // through `Renderer::run_frames`): nothing is written.
+            (Target::Part(_), None) | (Target::Frames(_), _) => {
+                return self.check(target).map(|()| None)
+            }
             (Target::Image, _) => {
                 let kind = match path {
                     Some(p) => ImageFile::of(p)?,
