@@ -159,18 +159,6 @@ const PARSE_BAR_BYTES: u64 = 64 << 20;
 /// Reads a scene file, or standard input for `-` (named `<stdin>` in
 /// messages). A big file shows how much of it is parsed: a 2.7 GB scene
 /// takes ten seconds.
-/// A render the validation layer complained about may be wrong: an error
-/// (exit 1), before anything is written.
-pub fn validation_verdict(messages: u32) -> anyhow::Result<()> {
-    if messages > 0 {
-        anyhow::bail!(
-            "the Vulkan validation layer reported {messages} message(s) (printed above); \
-             the result may be wrong, so nothing was written. Please report this with the scene"
-        );
-    }
-    Ok(())
-}
-
 pub fn read_scene(path: &std::path::Path) -> Result<glint::scene::Scene, glint::Error> {
     use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
     if path == std::path::Path::new("-") {

@@ -7,7 +7,7 @@ use std::time::Instant;
 use glint::render::pixel_path;
 
 use super::RenderArgs;
-use crate::cli::{print_warnings, read_scene, validation_verdict};
+use crate::cli::{print_warnings, read_scene};
 
 pub(super) fn run(args: &RenderArgs, pixel: [u32; 2]) -> anyhow::Result<ExitCode> {
     let (w, h) = (args.image.width, args.image.height);
@@ -41,7 +41,9 @@ pub(super) fn run(args: &RenderArgs, pixel: [u32; 2]) -> anyhow::Result<ExitCode
     let rgb = probed.value.color.map(|c| c.clamp(0.0, 1.0) as f32);
     let [r, g, b] = rgb.map(glint::images::framebuffer::to_u8);
     println!("8-bit value ({r}, {g}, {b})");
-    validation_verdict(probed.validation_messages)?;
+    if probed.validation_messages > 0 {
+        return Err(glint::Error::Validation(probed.validation_messages).into());
+    }
     if args.verbose {
         println!("took {:.1} ms", start.elapsed().as_secs_f64() * 1e3);
     }
