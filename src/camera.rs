@@ -6,9 +6,13 @@
 
 /// Vertical field of view, in degrees.
 pub const FOV_Y_DEGREES: f64 = 60.0;
+/// Image width unless told otherwise.
 pub const DEFAULT_WIDTH: u32 = 640;
+/// Image height unless told otherwise.
 pub const DEFAULT_HEIGHT: u32 = 480;
 
+/// The classic camera for one image size: at the origin, looking down -z,
+/// +y up.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Camera {
     /// Image width in pixels.
@@ -21,6 +25,7 @@ pub struct Camera {
 }
 
 impl Camera {
+    /// The classic camera for a `width` x `height` image (60° vertical field).
     pub fn new(width: u32, height: u32) -> Camera {
         Camera::with_fov(width, height, FOV_Y_DEGREES)
     }
@@ -38,6 +43,7 @@ impl Camera {
         }
     }
 
+    /// `half_extent` rounded to f32, as the shader reads it.
     pub fn half_extent_f32(&self) -> [f32; 2] {
         [self.half_extent[0] as f32, self.half_extent[1] as f32]
     }

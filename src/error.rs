@@ -1,8 +1,6 @@
 //! The library's error type. Every variant says what failed and where; the
 //! CLI maps them to exit codes (`Error::exit_code`).
 
-#![warn(missing_docs)]
-
 use std::path::PathBuf;
 
 use crate::gpu::GpuError;

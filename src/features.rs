@@ -11,7 +11,9 @@ use crate::scene::{Effects, Scene};
 /// SPIR-V is written, so a feature that is off is not in the shader at all.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub struct Features {
+    /// The scene has spheres.
     pub spheres: bool,
+    /// The scene has triangles.
     pub triangles: bool,
     /// Reflection depth > 0 and some surface has a non-zero ks.
     pub reflection: bool,
@@ -35,6 +37,7 @@ impl Features {
         multisample: true,
     };
 
+    /// What `scene` with `effects` calls for.
     pub fn of(scene: &Scene, effects: &Effects) -> Features {
         let sphere_ks = scene.spheres.iter().any(|s| s.material.ks != DVec3::ZERO);
         let triangle_ks = scene.triangles.iter().any(|t| {

@@ -8,8 +8,12 @@ use crate::bvh::Bvh;
 use crate::features::Features;
 use crate::scene::{Effects, LightShape, Scene};
 
+/// What `glint info` prints of a scene: counts, bounds, lights, the tree
+/// and the effects (its `Display`).
 pub struct SceneInfo<'a> {
+    /// The scene.
     pub scene: &'a Scene,
+    /// Its BVH.
     pub bvh: &'a Bvh,
     /// The scene's settings with any command-line overrides applied.
     pub effects: Effects,

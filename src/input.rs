@@ -34,21 +34,37 @@ pub const SNIFF: usize = 4096;
 /// Why an input was not read to its end.
 #[derive(Debug, thiserror::Error)]
 pub enum InputError {
+    /// The input is longer than the limit.
     #[error(
         "the input goes on past --max-input ({}); if it is meant to be this long, raise \
          --max-input (bytes, or with K, M, G or T)",
         crate::units::human(*limit)
     )]
-    TooLong { limit: u64 },
+    TooLong {
+        /// The limit, in bytes.
+        limit: u64,
+    },
+    /// A NUL byte where text was expected.
     #[error(
         "byte {offset}: binary data (a NUL byte) where text was expected; this is not a {what} \
          (a wrong file, or a device such as /dev/zero?)"
     )]
-    Binary { offset: u64, what: &'static str },
+    Binary {
+        /// Where the NUL byte is.
+        offset: u64,
+        /// What the text should have been ("scene file", "OBJ file").
+        what: &'static str,
+    },
     /// Input that cannot be what it should be, found before it was read
     /// to its end.
     #[error("byte {offset}: {message}")]
-    Refused { offset: u64, message: String },
+    Refused {
+        /// Where it was found.
+        offset: u64,
+        /// What is wrong.
+        message: String,
+    },
+    /// Reading failed.
     #[error("{0}")]
     Io(#[from] io::Error),
 }
@@ -84,6 +100,7 @@ pub struct Limited<R> {
 }
 
 impl<R: Read> Limited<R> {
+    /// `inner`, which may yield at most `limit` bytes.
     pub fn new(inner: R, limit: u64) -> Limited<R> {
         Limited {
             inner,
@@ -97,6 +114,7 @@ impl<R: Read> Limited<R> {
         Limited::new(inner, max_input())
     }
 
+    /// Bytes read so far.
     pub fn bytes_read(&self) -> u64 {
         self.read
     }
@@ -137,7 +155,10 @@ pub fn fill(reader: &mut impl Read, buf: &mut Vec<u8>, want: usize) -> io::Resul
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Kind {
     /// Text throughout: a NUL byte anywhere is binary data, refused there.
-    Text { what: &'static str },
+    Text {
+        /// What the text should be, for the message ("OBJ file").
+        what: &'static str,
+    },
     /// Anything goes (binary formats, or a text header before binary data).
     Binary,
 }

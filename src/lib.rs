@@ -43,6 +43,8 @@
 //! render::Sink: images::encode, images::framebuffer::write_bytes; images::compare
 //! ```
 
+#![warn(missing_docs)]
+
 pub mod bvh;
 pub mod camera;
 pub mod cpu;

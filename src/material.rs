@@ -1,8 +1,6 @@
 //! The Phong material, below both the scene parser and the model-file
 //! readers that make one.
 
-#![warn(missing_docs)]
-
 use glam::DVec3;
 
 /// Diffuse and specular reflectance with a Phong exponent, per channel.

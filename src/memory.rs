@@ -17,6 +17,7 @@ use crate::layout::{GpuPixelState, GpuScene};
 /// Bytes a render needs beyond what is already allocated, by part.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct MemoryNeed {
+    /// (what, bytes), in the order they are allocated.
     pub parts: Vec<(&'static str, u64)>,
 }
 
@@ -59,6 +60,7 @@ impl MemoryNeed {
         }
     }
 
+    /// All the parts' bytes together.
     pub fn total(&self) -> u64 {
         self.parts.iter().map(|p| p.1).sum()
     }

@@ -7,6 +7,8 @@
 
 use std::fmt;
 
+/// How rays meet surfaces and leave them: robust (the default) or naive
+/// (to show what robustness fixes).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
 pub enum Methods {
     /// Watertight triangles (Woop et al. 2013), the stable sphere test (Ray
@@ -20,8 +22,10 @@ pub enum Methods {
 }
 
 impl Methods {
+    /// Both, robust first.
     pub const ALL: [Methods; 2] = [Methods::Robust, Methods::Naive];
 
+    /// What flags and reports call it.
     pub fn name(self) -> &'static str {
         match self {
             Methods::Robust => "robust",

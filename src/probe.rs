@@ -14,6 +14,7 @@ use crate::layout::{
 /// No primitive: the ray missed, or (for a shadow ray) nothing blocks it.
 pub const NO_HIT: u32 = u32::MAX;
 
+/// What a primary ray found at one pixel (`probe_tile`).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct ProbePixel {
     /// Primitive reference (bit 31: sphere), or `NO_HIT`.
@@ -22,13 +23,16 @@ pub struct ProbePixel {
     pub shadow_mask: u32,
     /// `FLAG_NONFINITE_*` bits.
     pub flags: u32,
+    /// Distance along the primary ray (meaningless on a miss).
     pub t: f32,
 }
 
 impl ProbePixel {
+    /// Whether the primary ray hit something.
     pub fn hit(&self) -> bool {
         self.prim != NO_HIT
     }
+    /// Whether the shader flagged an infinite or NaN colour or surface.
     pub fn nonfinite(&self) -> bool {
         self.flags & (FLAG_NONFINITE_COLOR | FLAG_NONFINITE_SURFACE) != 0
     }
@@ -37,8 +41,11 @@ impl ProbePixel {
 /// One `ProbePixel` per pixel, row-major, row 0 at the top.
 #[derive(Clone, Debug, PartialEq)]
 pub struct ProbeImage {
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
+    /// Row-major, row 0 at the top.
     pub pixels: Vec<ProbePixel>,
 }
 
@@ -61,6 +68,7 @@ impl ProbeImage {
         }
     }
 
+    /// Pixel (x, y); panics outside the image.
     pub fn get(&self, x: u32, y: u32) -> &ProbePixel {
         &self.pixels[(y * self.width + x) as usize]
     }
@@ -69,13 +77,17 @@ impl ProbeImage {
 /// The surface a primary ray hit, as the shader computed it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct PathSurface {
+    /// The hit point.
     pub point: [f64; 3],
     /// Shading normal (interpolated for triangles).
     pub normal: [f64; 3],
     /// Geometric normal: the side shadow rays leave from.
     pub geometric_normal: [f64; 3],
+    /// Diffuse colour.
     pub kd: [f64; 3],
+    /// Specular colour.
     pub ks: [f64; 3],
+    /// Phong exponent.
     pub shininess: f64,
 }
 
@@ -90,24 +102,34 @@ pub struct PathLight {
     pub blocker_t: f64,
     /// L·N, max(R·V, 0) and its power; zero when blocked (not computed).
     pub ln: f64,
+    /// See `ln`.
     pub rv: f64,
+    /// See `ln`.
     pub spec: f64,
+    /// The light's colour times the Phong terms.
     pub contribution: [f64; 3],
 }
 
 /// A pixel's whole path: primary hit, surface, and every light's verdict.
 #[derive(Clone, Debug, PartialEq)]
 pub struct PathRecord {
+    /// The primary ray's direction.
     pub dir: [f64; 3],
+    /// What it hit (bit 31: sphere), or `NO_HIT`.
     pub prim: u32,
+    /// Distance along the primary ray.
     pub t: f64,
     /// Barycentric weights of vertices 1 and 2 (triangles).
     pub b1: f64,
+    /// See `b1`.
     pub b2: f64,
     /// Before clamping.
     pub color: [f64; 3],
+    /// Bit i: light i is blocked (lights 31 and up share bit 31).
     pub shadow_mask: u32,
+    /// `FLAG_NONFINITE_*` bits.
     pub flags: u32,
+    /// What it hit; None on a miss.
     pub surface: Option<PathSurface>,
     /// The first lights (all unless the GPU record ran out of room).
     pub lights: Vec<PathLight>,

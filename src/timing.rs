@@ -39,14 +39,17 @@ pub fn thread_cpu_time() -> Option<Duration> {
     None
 }
 
+/// Where a render's time went, by phase, and what it counted.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Timings {
+    /// (phase, time), in the order first recorded.
     pub phases: Vec<(&'static str, Duration)>,
     /// Counts that go with the phases (e.g. GPU passes), shown after them.
     pub counts: Vec<(&'static str, u64)>,
 }
 
 impl Timings {
+    /// Adds `d` to phase `name`.
     pub fn add(&mut self, name: &'static str, d: Duration) {
         match self.phases.iter_mut().find(|(n, _)| *n == name) {
             Some((_, total)) => *total += d,
@@ -67,10 +70,12 @@ impl Timings {
         self.phases.iter().find(|(n, _)| *n == name).map(|p| p.1)
     }
 
+    /// All phases together.
     pub fn total(&self) -> Duration {
         self.phases.iter().map(|p| p.1).sum()
     }
 
+    /// Adds `n` to count `name`.
     pub fn count(&mut self, name: &'static str, n: u64) {
         match self.counts.iter_mut().find(|(c, _)| *c == name) {
             Some((_, total)) => *total += n,
@@ -97,6 +102,7 @@ impl Timings {
             .then(|| self.counted(CLOSEST_RAYS) + self.counted(SHADOW_RAYS))
     }
 
+    /// Adds `other`'s phases and counts.
     pub fn extend(&mut self, other: &Timings) {
         for &(name, d) in &other.phases {
             self.add(name, d);

@@ -33,8 +33,11 @@ const BIN_COUNT: usize = 16;
 const INTERSECT_COST: f64 = 1.0;
 const TRAVERSAL_COST: f64 = 1.0;
 
+/// The scene's binary BVH, built once and shared by every backend (the GPU
+/// and the CPU reference collapse it to four children a node).
 #[derive(Clone, Debug)]
 pub struct Bvh {
+    /// The nodes, root first, each left child right after its parent.
     pub nodes: Vec<GpuBvhNode>,
     /// Primitive references in leaf order; bit 31 set for spheres.
     pub prim_refs: Vec<u32>,
@@ -64,11 +67,15 @@ impl Default for Bvh {
 /// How good a tree is: what `glint info` and `render --stats` print.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct BvhStats {
+    /// Node count.
     pub nodes: usize,
+    /// Leaf count.
     pub leaves: usize,
+    /// Deepest leaf (root = 0).
     pub depth: u32,
     /// Primitives per leaf: mean and most.
     pub mean_leaf: f64,
+    /// See `mean_leaf`.
     pub max_leaf: u32,
     /// The surface area heuristic's expected cost of a ray through the
     /// root box, in node visits and primitive tests (each counted 1): the
@@ -142,6 +149,7 @@ impl Box3 {
 }
 
 impl Bvh {
+    /// The tree's statistics.
     pub fn stats(&self) -> BvhStats {
         let area = |n: &GpuBvhNode| {
             let d = [0, 1, 2].map(|i| f64::from((n.max[i] - n.min[i]).max(0.0)));
@@ -177,6 +185,7 @@ impl Bvh {
         stats
     }
 
+    /// A binned-SAH tree of the scene's spheres and triangles, at time 0.
     pub fn build(scene: &Scene) -> Bvh {
         Bvh::build_swept(scene, 0.0)
     }

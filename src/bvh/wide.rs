@@ -31,8 +31,11 @@ pub const EMPTY: u32 = u32::MAX;
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(64))]
 pub struct Node4 {
+    /// The four children's boxes' low corners, by axis then lane.
     pub lo: [Vec4; 3],
+    /// The four children's boxes' high corners, by axis then lane.
     pub hi: [Vec4; 3],
+    /// Per lane: a node index, `LEAF | block`, or `EMPTY`.
     pub child: [u32; 4],
     /// Per node lane: the first of the child's leaf blocks, times
     /// `RUN_LEN`, plus how many there are (they lie together, `collapse`).
@@ -56,7 +59,9 @@ pub struct Node4 {
 #[derive(Clone, Copy, Debug, PartialEq)]
 #[repr(C, align(32))]
 pub struct LeafBlock {
+    /// Corners by axis, corner and lane: `p[axis][corner][lane]`.
     pub p: [[Vec4; 3]; 3],
+    /// The lanes' primitive references (`NONE`: unused).
     pub prims: [u32; 4],
 }
 
@@ -66,7 +71,9 @@ pub const NONE: u32 = u32::MAX;
 /// A leaf's primitive references: `prim_refs[first..first + count]`.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct LeafSpan {
+    /// The first of the leaf's references.
     pub first: u32,
+    /// How many references it has.
     pub count: u32,
 }
 
@@ -82,8 +89,11 @@ impl LeafSpan {
 /// and a span at the same index.
 #[derive(Clone, Debug, Default)]
 pub struct WideBvh {
+    /// The nodes, root first.
     pub nodes: Vec<Node4>,
+    /// Per leaf, its triangles for the SIMD test.
     pub leaves: Vec<LeafBlock>,
+    /// Per leaf, its primitive references.
     pub spans: Vec<LeafSpan>,
 }
 
@@ -135,6 +145,7 @@ impl Node4 {
         first..first + word % RUN_LEN
     }
 
+    /// Lane `lane`'s box: its low and high corners.
     pub fn lane_box(&self, lane: usize) -> ([f32; 3], [f32; 3]) {
         (
             [0, 1, 2].map(|a| self.lo[a][lane]),

@@ -127,7 +127,9 @@ pub struct Work {
 /// packs its buffers once, so that a render (or a progressive pass) pays
 /// only for its rays.
 pub enum Geometry {
+    /// In f32, the shader's twin.
     F32(CpuGeometry<f32>),
+    /// In f64, the ground truth.
     F64(CpuGeometry<f64>),
 }
 

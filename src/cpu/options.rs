@@ -16,9 +16,13 @@ pub enum Precision {
 /// What the CPU reference renders with, besides the scene and camera.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct CpuOptions {
+    /// The colour of rays that hit nothing.
     pub background: [f32; 3],
+    /// f32 (the shader's twin) or f64 (ground truth).
     pub precision: Precision,
+    /// Robust or naive ray offsets and intersection.
     pub methods: Methods,
+    /// Samples, shadow samples, reflection depth, shutter and seed.
     pub effects: Effects,
     /// Whether f32 renders may trace their pixels' rays in packets
     /// (`packet::applies`); off, every ray goes alone. The image is the

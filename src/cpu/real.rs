@@ -12,14 +12,22 @@ use crate::bvh::wide::{LeafBlock, Node4};
 /// the watertight test's axis permutation `k` and shear, and its time.
 #[derive(Clone, Copy, Debug)]
 pub struct Ray<R: Real> {
+    /// Where the ray starts.
     pub origin: R::V3,
+    /// Its direction (not necessarily unit length).
     pub dir: R::V3,
+    /// Per axis, one over `dir`.
     pub inv_dir: R::V3,
+    /// The watertight test's axes: `k[2]` the largest of `dir`, then the other two.
     pub k: [usize; 3],
+    /// The watertight test's shear of the triangle's corners.
     pub shear: R::V3,
+    /// Seconds into the shutter (motion blur; 0 otherwise).
     pub time: R,
 }
 
+/// The precision the CPU reference computes in: `f32` (the shader's twin) or
+/// `f64` (ground truth), each with its 3-vector.
 pub trait Real:
     Copy
     + Send
@@ -33,6 +41,7 @@ pub trait Real:
     + Neg<Output = Self>
     + 'static
 {
+    /// The 3-vector of this precision (`Vec3`, `DVec3`).
     type V3: Copy
         + Send
         + Sync
@@ -44,9 +53,13 @@ pub trait Real:
         + Neg<Output = Self::V3>
         + Index<usize, Output = Self>;
 
+    /// 0.
     const ZERO: Self;
+    /// 1.
     const ONE: Self;
+    /// 2.
     const TWO: Self;
+    /// 0.5.
     const HALF: Self;
     /// Largest finite value: "no limit" for t, as `T_INF` in the shader.
     const T_INF: Self;
@@ -57,24 +70,40 @@ pub trait Real:
     /// Wächter-Binder offset constants; the f64 ones scale the f32 ones by
     /// the ratio of the two machine epsilons.
     const OFFSET_ORIGIN: Self;
+    /// See `OFFSET_ORIGIN`.
     const OFFSET_FLOAT_SCALE: Self;
+    /// See `OFFSET_ORIGIN`.
     const OFFSET_INT_SCALE: Self;
     /// The naive methods' magic numbers; see `NAIVE_OFFSET` in the shader.
     const NAIVE_OFFSET: Self;
+    /// See `NAIVE_OFFSET`.
     const NAIVE_DET_EPSILON: Self;
 
+    /// The nearest value of this precision.
     fn from_f64(x: f64) -> Self;
+    /// The nearest value of this precision.
     fn from_u32(x: u32) -> Self;
+    /// The value as an `f64` (exact).
     fn to_f64(self) -> f64;
+    /// Square root.
     fn sqrt(self) -> Self;
+    /// One over the square root.
     fn inverse_sqrt(self) -> Self;
+    /// `self` to the power `y`, as C's `pow` (0^0 = 1).
     fn powf(self, y: Self) -> Self;
+    /// The smaller of the two.
     fn min(self, o: Self) -> Self;
+    /// The larger of the two.
     fn max(self, o: Self) -> Self;
+    /// Absolute value.
     fn abs(self) -> Self;
+    /// Sine (radians).
     fn sin(self) -> Self;
+    /// Cosine (radians).
     fn cos(self) -> Self;
+    /// π.
     const PI: Self;
+    /// 1 for zero and above, -1 below.
     fn sign_nonzero(self) -> Self {
         if self >= Self::ZERO {
             Self::ONE
@@ -83,19 +112,31 @@ pub trait Real:
         }
     }
 
+    /// A vector of three components.
     fn v3(x: Self, y: Self, z: Self) -> Self::V3;
+    /// The vector rounded to this precision.
     fn v3_from_f64(v: DVec3) -> Self::V3;
+    /// The vector in this precision (exact).
     fn v3_from_f32(v: [f32; 3]) -> Self::V3;
+    /// The vector rounded to f32.
     fn v3_to_f32(v: Self::V3) -> [f32; 3];
+    /// The vector as f64 (exact).
     fn v3_to_f64(v: Self::V3) -> [f64; 3];
     /// Whether any component is infinite or NaN.
     fn nonfinite(v: Self::V3) -> bool;
+    /// Dot product.
     fn dot(a: Self::V3, b: Self::V3) -> Self;
+    /// Cross product.
     fn cross(a: Self::V3, b: Self::V3) -> Self::V3;
+    /// The vector divided by its length.
     fn normalize(v: Self::V3) -> Self::V3;
+    /// Per component, the smaller.
     fn vmin(a: Self::V3, b: Self::V3) -> Self::V3;
+    /// Per component, the larger.
     fn vmax(a: Self::V3, b: Self::V3) -> Self::V3;
+    /// Each component clamped to [0, 1].
     fn clamp01(v: Self::V3) -> Self::V3;
+    /// Per component, the absolute value.
     fn vabs(v: Self::V3) -> Self::V3;
 
     /// Moves `p` off its surface along `n` by whole ulps (Ray Tracing Gems ch. 6).

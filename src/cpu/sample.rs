@@ -4,14 +4,20 @@
 
 use super::real::Real;
 
-/// Stream ids and the rotation index, as in the shader.
+/// The stream of the pixel position (streams and the rotation index are
+/// the shader's).
 pub const STREAM_PIXEL: u32 = 0;
+/// The stream of the motion-blur time.
 pub const STREAM_TIME: u32 = 1;
+/// The stream of area lights' points (plus the light and bounce).
 pub const STREAM_LIGHT: u32 = 2;
+/// The index that draws a pixel's or light's rotation of its grid.
 pub const ROTATION: u32 = u32::MAX;
 
 pub use crate::hash::hash_u32;
 
+/// The random word of (seed, pixel, sample, stream, index): a hash chain,
+/// the shader's `rng`.
 pub fn rng(seed: u32, pixel: u32, sample: u32, stream: u32, index: u32) -> u32 {
     let mut h = hash_u32(seed ^ 0x9e37_79b9);
     h = hash_u32(h ^ pixel);
@@ -20,11 +26,13 @@ pub fn rng(seed: u32, pixel: u32, sample: u32, stream: u32, index: u32) -> u32 {
     hash_u32(h ^ index)
 }
 
+/// The top 24 bits of `x` as a number in [0, 1).
 pub fn unit_float<R: Real>(x: u32) -> R {
     R::from_u32(x >> 8) * R::from_f64(1.0 / 16_777_216.0)
 }
 
-/// ceil(sqrt(n)), at least 1: the float root corrected by one either way.
+/// Columns of the near-square grid `stratified_2d` lays over `n` samples:
+/// ceil(sqrt(n)), at least 1, the float root corrected by one either way.
 pub fn grid_columns(n: u32) -> u32 {
     let mut c = (n as f32).sqrt() as u32;
     if c * c < n {
@@ -36,6 +44,8 @@ pub fn grid_columns(n: u32) -> u32 {
     c.max(1)
 }
 
+/// Sample `k` of `n` in the unit square: a cell of a `grid_columns(n)` grid,
+/// visited from `rotation`, with `jitter` ([0,1)²) within the cell.
 pub fn stratified_2d<R: Real>(k: u32, n: u32, rotation: u32, jitter: [R; 2]) -> [R; 2] {
     let cols = grid_columns(n);
     let rows = n.div_ceil(cols);

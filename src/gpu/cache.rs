@@ -77,13 +77,16 @@ pub struct DiskCache {
 /// What `DiskCache::load` found.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub enum Loaded {
+    /// The cached pipeline data.
     Data(Vec<u8>),
+    /// No cache file yet.
     Missing,
     /// A file that is not a valid cache for this device and shader.
     Ignored(String),
 }
 
 impl DiskCache {
+    /// A cache in `dir` for `device`.
     pub fn new(dir: PathBuf, device: DeviceKey) -> DiskCache {
         DiskCache { dir, device }
     }

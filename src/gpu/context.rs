@@ -49,6 +49,7 @@ impl fmt::Display for DeviceSelector {
     }
 }
 
+/// Which device to open, and with what.
 #[derive(Clone, Debug, Default)]
 pub struct ContextOptions {
     /// `None` picks the best device: discrete > integrated > virtual > CPU.
@@ -64,12 +65,18 @@ pub struct ContextOptions {
     pub window: Option<WindowTarget>,
 }
 
+/// A Vulkan device as `glint devices` lists it.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct DeviceInfo {
+    /// Its index in the driver's list (`--device N`).
     pub index: usize,
+    /// The device's name.
     pub name: String,
+    /// Discrete, integrated, virtual or CPU.
     pub device_type: String,
+    /// The driver's name and version.
     pub driver: String,
+    /// The Vulkan version it supports.
     pub api_version: String,
     /// How glint renders on it (`gpu::driver`).
     pub profile: DriverProfile,
@@ -417,6 +424,7 @@ type Chosen = (
 );
 
 impl Context {
+    /// Opens the device `options` chooses, with a compute queue.
     pub fn new(options: &ContextOptions) -> Result<Context, GpuError> {
         let mut instance = create_instance(options.validation, options.window.as_ref())?;
         let chosen = match &options.window {
@@ -619,10 +627,12 @@ impl Context {
         })
     }
 
+    /// The device opened.
     pub fn info(&self) -> &DeviceInfo {
         &self.shared.info
     }
 
+    /// The limits glint checks a scene's buffers against.
     pub fn limits(&self) -> &DeviceLimits {
         &self.shared.limits
     }

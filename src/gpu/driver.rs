@@ -46,7 +46,10 @@ const STATE_BYTES: u64 = 128;
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum DriverKind {
     /// Mesa's llvmpipe (lavapipe), with its major version.
-    Llvmpipe { mesa: u32 },
+    Llvmpipe {
+        /// Mesa's major version.
+        mesa: u32,
+    },
     /// Another device of `VK_PHYSICAL_DEVICE_TYPE_CPU` (SwiftShader, ...).
     OtherCpu,
     /// A discrete or integrated GPU.
@@ -58,6 +61,7 @@ pub enum DriverKind {
 /// How glint renders on one device.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct DriverProfile {
+    /// Which device and driver it is.
     pub kind: DriverKind,
     /// Default tile edge (`--tile`): pixels per pass.
     pub tile_size: u32,

@@ -11,7 +11,9 @@ use super::error::GpuError;
 /// A window's raw handles, for a Vulkan surface.
 #[derive(Clone, Copy)]
 pub struct WindowTarget {
+    /// The display connection.
     pub display: raw_window_handle::RawDisplayHandle,
+    /// The window.
     pub window: raw_window_handle::RawWindowHandle,
 }
 

@@ -3,8 +3,6 @@
 //! two of them (`compare`), and the workers that write an animation's
 //! frames while the next renders (`write_queue`).
 
-#![warn(missing_docs)]
-
 pub mod compare;
 pub mod encode;
 pub mod framebuffer;

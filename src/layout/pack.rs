@@ -18,13 +18,18 @@ use crate::scene::{Effects, LightShape, Scene};
 /// (zeroed) element; counts that matter travel in `GpuFrame` and the BVH.
 #[derive(Clone, Debug, Default)]
 pub struct GpuScene {
+    /// The spheres.
     pub spheres: Vec<GpuSphere>,
     /// The triangles, with their normals, velocities and every reference
     /// to them, in the order `scene_triangles` gives.
     pub triangles: Vec<GpuTriangle>,
+    /// Per triangle, its corners' normals.
     pub normals: Vec<GpuTriangleNormals>,
+    /// The distinct materials of the triangle corners.
     pub materials: Vec<GpuMaterial>,
+    /// The lights.
     pub lights: Vec<GpuLight>,
+    /// The BVH collapsed to four children a node.
     pub nodes: Vec<GpuWideNode>,
     /// `Bvh::prim_refs`, the last of each leaf marked with `LEAF_END`.
     pub prim_refs: Vec<u32>,
@@ -34,6 +39,7 @@ pub struct GpuScene {
     /// xyz = velocity of each sphere, then each triangle; empty when
     /// nothing moves.
     pub velocities: Vec<[f32; 4]>,
+    /// The ambient colour.
     pub ambient: [f32; 3],
     /// Empty: the triangles are in the scene's order. Otherwise (a scene
     /// without spheres, of at most 2^28 - 8 triangles, no leaf over 8)
@@ -196,6 +202,7 @@ fn f4(v: glam::DVec3) -> [f32; 4] {
 }
 
 impl GpuScene {
+    /// Packs `scene` and its tree, in render space (`bvh.scale`).
     pub fn pack(scene: &Scene, bvh: &Bvh) -> GpuScene {
         let scene = &*scene.in_render_space(bvh.scale);
         let spheres = scene

@@ -16,33 +16,42 @@ pub const WORKGROUP_SIZE: u32 = 8;
 // The shader's block_pixel lays 4x2 blocks over an 8x8 workgroup: any other
 // size would leave pixels unrendered.
 const _: () = assert!(WORKGROUP_SIZE == 8);
-/// `probe_tile` flags: the unclamped colour, or the surface point or normal,
-/// has an infinite or NaN component.
+/// `probe_tile` flag: the unclamped colour has an infinite or NaN component.
 pub const FLAG_NONFINITE_COLOR: u32 = 1;
+/// `probe_tile` flag: the surface point or normal has an infinite or NaN
+/// component.
 pub const FLAG_NONFINITE_SURFACE: u32 = 2;
 /// `probe_pixel` record: `PATH_HEADER` texels, then `PATH_PER_LIGHT` per
 /// light (decoded by `probe::PathRecord::from_texels`).
 pub const PATH_HEADER: u32 = 8;
+/// Texels a light adds to a `probe_pixel` record.
 pub const PATH_PER_LIGHT: u32 = 3;
 
 /// Per-image constants (uniform, binding 0).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuFrame {
+    /// The background colour (rgb; w unused).
     pub background: [f32; 4],
+    /// The scene's ambient colour (rgb; w unused).
     pub ambient: [f32; 4],
     /// `Camera::half_extent` in f32.
     pub half_extent: [f32; 2],
     /// Image width and height in pixels.
     pub size: [u32; 2],
+    /// Nodes of the BVH the shader traverses.
     pub node_count: u32,
+    /// Lights in the light list.
     pub light_count: u32,
     /// Where triangles start in the velocity buffer.
     pub sphere_count: u32,
+    /// Seed of the per-pixel sample hash.
     pub seed: u32,
     /// Samples per pixel, shadow samples per area light, reflection bounces.
     pub spp: u32,
+    /// Shadow samples per area light.
     pub shadow_samples: u32,
+    /// Reflection bounces after the primary hit.
     pub reflect_depth: u32,
     /// Seconds the shutter is open; 0 unless the scene calls for motion blur.
     pub shutter: f32,
@@ -79,6 +88,7 @@ pub struct GpuTile {
     pub budget: u32,
     /// 1 on the tile's first pass: the shader initialises the pixel state.
     pub first: u32,
+    /// Padding to a 16-byte multiple.
     pub _pad: [u32; 2],
 }
 
@@ -87,23 +97,41 @@ pub struct GpuTile {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuPixelState {
+    /// Sum of the finished samples.
     pub sum: [f32; 3],
+    /// The next sample to take.
     pub sample: u32,
+    /// The sample in progress: its colour so far.
     pub color: [f32; 3],
+    /// The sample in progress: its bounce.
     pub bounce: u32,
+    /// What the current bounce's colour is weighted by.
     pub weight: [f32; 3],
+    /// The next light to shade at the current hit.
     pub light: u32,
+    /// Phong shading's running sum at the current hit.
     pub shade: [f32; 3],
+    /// The next sample of the area light `light`.
     pub area_sample: u32,
+    /// The area light's running sum for light `light`.
     pub area: [f32; 3],
+    /// The current hit's primitive.
     pub prim: u32,
+    /// The current ray's origin.
     pub origin: [f32; 3],
+    /// The current hit's distance along the ray.
     pub t: f32,
+    /// The current ray's direction.
     pub dir: [f32; 3],
+    /// The current hit's first barycentric coordinate.
     pub b1: f32,
+    /// The sample's time within the shutter (motion blur).
     pub time: f32,
+    /// The current hit's second barycentric coordinate.
     pub b2: f32,
+    /// `PHASE_START`, `PHASE_TRACE` or `PHASE_SHADE` of the shader.
     pub phase: u32,
+    /// Padding to a 16-byte multiple.
     pub _pad: u32,
 }
 
@@ -123,6 +151,7 @@ pub struct GpuStatus {
     /// Shadow rays cast in the pass (one per point light, or per
     /// area-light sample, at every shaded point).
     pub shadow_rays: u32,
+    /// Padding to a 16-byte multiple.
     pub _pad: u32,
 }
 
@@ -141,14 +170,21 @@ impl GpuStatus {
 /// Most iterations one BVH traversal may take in the shader.
 pub const MAX_TRAVERSAL_STEPS: u32 = 16384;
 
+/// A sphere as the shader reads it (48 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuSphere {
+    /// The centre.
     pub center: [f32; 3],
+    /// The radius.
     pub radius: f32,
+    /// Diffuse colour.
     pub kd: [f32; 3],
+    /// Phong exponent.
     pub shininess: f32,
+    /// Specular colour.
     pub ks: [f32; 3],
+    /// Padding to a 16-byte multiple.
     pub _pad: f32,
 }
 
@@ -166,6 +202,7 @@ pub struct GpuTriangle {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuTriangleNormals {
+    /// The three corners' normals, xyz after xyz.
     pub n: [f32; 9],
 }
 
@@ -175,9 +212,13 @@ pub struct GpuTriangleNormals {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuMaterial {
+    /// Diffuse colour.
     pub kd: [f32; 3],
+    /// Phong exponent.
     pub shininess: f32,
+    /// Specular colour.
     pub ks: [f32; 3],
+    /// Padding to a 16-byte multiple.
     pub _pad: f32,
 }
 
@@ -307,17 +348,22 @@ pub fn uniform_copy(j: usize, list: &[u8]) -> Option<Vec<u8>> {
     Some(copy)
 }
 
-/// `GpuLight::kind` values.
+/// `GpuLight::kind` of a point light.
 pub const LIGHT_POINT: u32 = 0;
+/// `GpuLight::kind` of a sphere light.
 pub const LIGHT_SPHERE: u32 = 1;
+/// `GpuLight::kind` of a rectangle light.
 pub const LIGHT_RECT: u32 = 2;
 
+/// A light as the shader reads it (80 bytes).
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuLight {
+    /// Point lights: the light; area lights: the centre.
     pub position: [f32; 3],
     /// `LIGHT_POINT`, `LIGHT_SPHERE` or `LIGHT_RECT`.
     pub kind: u32,
+    /// The light's colour.
     pub color: [f32; 3],
     /// Sphere lights only.
     pub radius: f32,
@@ -326,9 +372,13 @@ pub struct GpuLight {
     /// Point lights: where the surfaces through the light start in the skip
     /// list (binding 13), and how many (`lights_on_surfaces`).
     pub skip_first: u32,
+    /// Rectangle lights only: the second edge.
     pub edge_v: [f32; 3],
+    /// Point lights: how many surfaces through the light (see `skip_first`).
     pub skip_count: u32,
+    /// Scene units a second the light moves (motion blur).
     pub velocity: [f32; 3],
+    /// Padding to a 16-byte multiple.
     pub _pad2: f32,
 }
 
@@ -350,9 +400,13 @@ pub struct GpuLight {
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuWideNode {
+    /// The node box's low corner (xyz) and the three exponents' bits (w).
     pub origin: [f32; 4],
+    /// The children's low bytes (words 0-2) and the x high bytes (word 3).
     pub lo_hi: [u32; 4],
+    /// The children's y and z high bytes (words 0-1); words 2-3 unused.
     pub hi_yz: [u32; 4],
+    /// Per child lane: a node index, `WIDE_LEAF | first`, or `WIDE_EMPTY`.
     pub child: [u32; 4],
 }
 
@@ -379,7 +433,9 @@ pub const TRAVERSAL_STACK: u32 = BVH_MAX_DEPTH;
 #[repr(C)]
 #[derive(Clone, Copy, Debug, Default, PartialEq, Pod, Zeroable)]
 pub struct GpuResolve {
+    /// The view's width and height in pixels.
     pub size: [u32; 2],
+    /// 1 on the view's first pass: the sums start over.
     pub reset: u32,
     /// 1: pack B, G, R, A (`B8G8R8A8_UNORM`); 0: R, G, B, A.
     pub bgra: u32,

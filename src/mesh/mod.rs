@@ -47,18 +47,25 @@ pub const DEFAULT_MATERIAL: Material = Material {
 /// unusable); its material, if the file assigns one.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Face {
+    /// Indices into `Mesh::positions`.
     pub positions: [u32; 3],
+    /// Indices into `Mesh::normals`, where the file gives them.
     pub normals: Option<[u32; 3]>,
+    /// Index into `Mesh::materials`, where the file assigns one.
     pub material: Option<u32>,
 }
 
+/// A model file as read: positions, normals, colours, faces and materials,
+/// before it becomes scene triangles (`scene::mesh`).
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct Mesh {
+    /// Vertex positions.
     pub positions: Vec<DVec3>,
     /// The file's normals (OBJ `vn`, PLY `nx ny nz`, OFF `NOFF`).
     pub normals: Vec<DVec3>,
     /// Per position, linear [0, 1] RGB, when the file has vertex colours.
     pub colors: Vec<DVec3>,
+    /// The triangles (convex polygons fanned into them).
     pub faces: Vec<Face>,
     /// Materials the file defines (OBJ `usemtl` from its `mtllib`, glTF's).
     pub materials: Vec<Material>,
@@ -69,9 +76,11 @@ pub struct Mesh {
 /// What is wrong in a model file, and where.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct MeshError {
+    /// The model file.
     pub path: PathBuf,
     /// "line 12" or "byte 4096".
     pub at: Option<String>,
+    /// What is wrong, and what to do.
     pub message: String,
 }
 
@@ -89,17 +98,24 @@ impl std::error::Error for MeshError {}
 /// The model formats, by extension (and for STL and glTF, by content).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Format {
+    /// Wavefront OBJ (with its MTL libraries).
     Obj,
+    /// Stanford PLY, ASCII or binary.
     Ply,
+    /// OFF (with `COFF`, `NOFF` and `CNOFF`).
     Off,
     /// Binary STL (`read` tells it from ASCII by content).
     Stl,
+    /// ASCII STL.
     StlAscii,
+    /// glTF 2.0 JSON (with its buffers).
     Gltf,
+    /// Binary glTF.
     Glb,
 }
 
 impl Format {
+    /// The format its extension names; None for other extensions.
     pub fn of(path: &Path) -> Option<Format> {
         let ext = path.extension()?.to_str()?.to_ascii_lowercase();
         match ext.as_str() {
@@ -130,7 +146,9 @@ impl Format {
 /// did not come from a file).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Refs {
+    /// Read them from the file's directory.
     Disk,
+    /// Treat them as missing.
     None,
 }
 

@@ -81,10 +81,13 @@ impl Tolerance {
 /// One tolerated thing, and where.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Warning {
+    /// What kind of thing was tolerated.
     pub kind: Tolerance,
+    /// The model file.
     pub path: PathBuf,
     /// "line 12", "byte 4096" or a JSON path such as `meshes[0].primitives[1]`.
     pub at: Option<String>,
+    /// What was tolerated.
     pub message: String,
 }
 
@@ -103,11 +106,14 @@ pub const KEPT_PER_KIND: usize = 3;
 /// Everything one model file needed tolerated.
 #[derive(Clone, Debug, Default, PartialEq, Eq)]
 pub struct Report {
+    /// The first `KEPT_PER_KIND` warnings of each kind.
     pub kept: Vec<Warning>,
+    /// How many of each kind there were.
     pub counts: BTreeMap<Tolerance, usize>,
 }
 
 impl Report {
+    /// Records a warning of `kind` at `at` in `path`.
     pub fn warn(
         &mut self,
         kind: Tolerance,
@@ -127,6 +133,7 @@ impl Report {
         }
     }
 
+    /// Whether nothing was tolerated.
     pub fn is_empty(&self) -> bool {
         self.counts.is_empty()
     }
@@ -167,6 +174,7 @@ impl Report {
         (!parts.is_empty()).then(|| format!("{} dropped", parts.join(", ")))
     }
 
+    /// Adds `other`'s warnings and counts (another file of the same model).
     pub fn merge(&mut self, other: Report) {
         for w in other.kept {
             if self.kept.iter().filter(|k| k.kind == w.kind).count() < KEPT_PER_KIND {

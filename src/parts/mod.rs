@@ -11,8 +11,6 @@
 //! - here: the index's source, part file names, the requeue check, and
 //!   finding, waiting for and vetting the parts of a stitch.
 
-#![warn(missing_docs)]
-
 pub mod crop;
 pub mod cut;
 pub mod frames;

@@ -10,8 +10,6 @@
 //!   a time, adaptive blocks.
 //! - `region`: which pixels a render computes.
 
-#![warn(missing_docs)]
-
 mod frames;
 mod job;
 mod options;

@@ -7,11 +7,13 @@ use std::fmt;
 /// a caret under the offending token.
 #[derive(Clone, Debug, PartialEq, Eq)]
 pub struct Diagnostic {
+    /// The scene file, as the user named it.
     pub path: String,
     /// 1-based line number.
     pub line: usize,
     /// 1-based column, in characters.
     pub col: usize,
+    /// What is wrong.
     pub message: String,
     /// What to do about it, when there is something useful to say.
     pub hint: Option<String>,
@@ -51,6 +53,7 @@ impl fmt::Display for Diagnostic {
 pub struct ParseError(pub Box<Diagnostic>);
 
 impl ParseError {
+    /// Where and what.
     pub fn diagnostic(&self) -> &Diagnostic {
         &self.0
     }

@@ -4,8 +4,6 @@
 //! file's own numbers; the GPU packing (`layout`) and the CPU f32 path round
 //! them to f32 once, in one place each.
 
-#![warn(missing_docs)]
-
 use glam::DVec3;
 
 pub use super::diagnostic::Diagnostic;

@@ -11,12 +11,16 @@ use crate::scene::model::Scene;
 /// What `write_obj` wrote, and what OBJ could not hold.
 #[derive(Clone, Debug, Default, PartialEq)]
 pub struct ObjWritten {
+    /// Triangles written.
     pub triangles: usize,
+    /// Materials written to the MTL file.
     pub materials: usize,
     /// Triangles whose corners have different materials: OBJ gives a face
     /// one, so the first corner's was written.
     pub mixed_materials: usize,
+    /// Spheres, which OBJ cannot hold.
     pub spheres_skipped: usize,
+    /// Lights, which OBJ cannot hold.
     pub lights_skipped: usize,
 }
 

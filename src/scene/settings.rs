@@ -36,12 +36,17 @@ impl Settings {
 /// Resolved settings: what the renderer simulates.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Effects {
+    /// Reflection bounces after the primary hit (0: none).
     pub reflect_depth: u32,
+    /// Samples per pixel.
     pub spp: u32,
+    /// Shadow samples per area light.
     pub shadow_samples: u32,
     /// Fraction of the frame interval the shutter is open.
     pub shutter: f64,
+    /// Seed of the per-pixel sample hash.
     pub seed: u32,
+    /// Frames per second of an animation (the shutter's time base).
     pub fps: f64,
 }
 
@@ -55,11 +60,16 @@ impl Effects {
     /// Area lights get this many shadow rays unless told otherwise: enough
     /// for a penumbra without visible banding at one sample per pixel.
     pub const DEFAULT_SHADOW_SAMPLES: u32 = 16;
+    /// Frames per second unless the scene or `--fps` says otherwise.
     pub const DEFAULT_FPS: f64 = 24.0;
+    /// Most reflection bounces a scene may ask for.
     pub const MAX_REFLECT: u32 = 64;
+    /// Most samples per pixel a scene may ask for.
     pub const MAX_SPP: u32 = 65_536;
+    /// Most shadow samples per area light a scene may ask for.
     pub const MAX_SHADOW_SAMPLES: u32 = 4096;
 
+    /// The settings with every unset value at its default.
     pub fn resolve(s: &Settings) -> Effects {
         Effects {
             reflect_depth: s.reflect.unwrap_or(0),

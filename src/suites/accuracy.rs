@@ -16,11 +16,14 @@ use crate::suites::plot::Plot;
 /// Where a point renders.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum Target {
+    /// The Vulkan device.
     Gpu,
+    /// The CPU reference, in this precision.
     Cpu(Precision),
 }
 
 impl Target {
+    /// The CSV's `backend` column: "gpu" or "cpu".
     pub fn backend(self) -> &'static str {
         match self {
             Target::Gpu => "gpu",
@@ -28,6 +31,7 @@ impl Target {
         }
     }
 
+    /// The CSV's `precision` column: "f32" or "f64".
     pub fn precision(self) -> &'static str {
         match self {
             Target::Cpu(Precision::F64) => "f64",
@@ -40,9 +44,13 @@ impl Target {
 /// scene's values.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Point {
+    /// Which setting changes ("scene" for none, "spp", "shadow_samples", ...).
     pub knob: &'static str,
+    /// Its value, as the CSV writes it.
     pub value: String,
+    /// Where it renders.
     pub target: Target,
+    /// Robust or naive ray offsets and intersection.
     pub methods: Methods,
     /// The scene's settings with this point's change.
     pub effects: Effects,
@@ -137,6 +145,7 @@ pub fn plan(scene: &Scene, effects: &Effects, targets: &[Target]) -> Vec<Point> 
 /// clamped to [0, 1]).
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct Errors {
+    /// Root mean squared error.
     pub rmse: f64,
     /// Mean of (x - r)^2 / (r^2 + 0.01) per channel.
     pub relmse: f64,
@@ -150,6 +159,8 @@ pub struct Errors {
     pub nan: usize,
 }
 
+/// The errors of `image` against `reference` (same size), each channel
+/// clamped to [0, 1]; a non-finite value counts as an error of 1.
 pub fn errors(image: &Framebuffer, reference: &Framebuffer) -> Errors {
     let clamp = |v: f32| f64::from(v).clamp(0.0, 1.0);
     let mut sq = 0.0;
@@ -190,16 +201,20 @@ pub fn errors(image: &Framebuffer, reference: &Framebuffer) -> Errors {
 /// A point rendered and measured.
 #[derive(Clone, Debug, PartialEq)]
 pub struct Measured {
+    /// What was rendered.
     pub point: Point,
     /// Median wall time of one render (BVH, upload, dispatch, readback).
     pub time: Duration,
     /// Median time of the GPU's dispatches alone (GPU points).
     pub dispatch: Option<Duration>,
+    /// Its errors against the reference.
     pub errors: Errors,
 }
 
+/// The first line of `csv`'s output.
 pub const CSV_HEADER: &str = "knob,value,backend,precision,methods,spp,shadow_samples,reflect,time_ms,dispatch_ms,rmse,relmse,psnr,flip,p99,nan";
 
+/// The rows as CSV, under `CSV_HEADER`.
 pub fn csv(rows: &[Measured]) -> String {
     let mut s = format!("{CSV_HEADER}\n");
     for m in rows {

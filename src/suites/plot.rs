@@ -8,10 +8,14 @@ use std::fmt::Write as _;
 
 use image::{Rgb, RgbImage};
 
+/// Where text sits on its anchor point.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Anchor {
+    /// The text starts there.
     Start,
+    /// The text is centred there.
     Middle,
+    /// The text ends there.
     End,
 }
 
@@ -40,7 +44,9 @@ enum Item {
 /// A drawing in user units (SVG pixels), on white.
 #[derive(Clone, Debug)]
 pub struct Plot {
+    /// Width in user units.
     pub width: f64,
+    /// Height in user units.
     pub height: f64,
     items: Vec<Item>,
 }
@@ -69,6 +75,7 @@ fn glyph(c: char) -> [u8; 8] {
 }
 
 impl Plot {
+    /// An empty drawing of this size.
     pub fn new(width: f64, height: f64) -> Plot {
         Plot {
             width,
@@ -86,6 +93,7 @@ impl Plot {
         });
     }
 
+    /// A filled circle.
     pub fn dot(&mut self, at: [f64; 2], radius: f64, colour: [u8; 3]) {
         self.items.push(Item::Dot { at, radius, colour });
     }
@@ -101,6 +109,7 @@ impl Plot {
         });
     }
 
+    /// The drawing as an SVG document.
     pub fn to_svg(&self) -> String {
         let (w, h) = (self.width, self.height);
         let mut s = format!(

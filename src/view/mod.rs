@@ -51,7 +51,9 @@ fn window_target(window: &Window) -> Option<crate::gpu::WindowTarget> {
 
 /// What `glint view` was asked for.
 pub struct ViewOptions {
+    /// Image size, backend, device, effects.
     pub render: RenderOptions,
+    /// When refinement stops.
     pub stop: StopAt,
     /// Written when the refinement stops, and when the window closes.
     pub out: Option<PathBuf>,

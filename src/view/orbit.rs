@@ -11,8 +11,10 @@ const ORBIT_PER_PIXEL: f64 = 0.006;
 /// Zoom factor per wheel line.
 const ZOOM_PER_LINE: f64 = 0.9;
 
+/// The view's camera and how the mouse moves it.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Orbit {
+    /// Where the camera is and looks.
     pub camera: CameraSpec,
     /// Where orbiting turns about: along the view, at the scene's distance.
     pivot_distance: f64,

@@ -36,10 +36,15 @@ pub enum Show {
 /// newer one arrives.
 #[derive(Clone, Debug)]
 pub struct Job {
+    /// Where the camera is.
     pub camera: CameraSpec,
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
+    /// Which image to show.
     pub show: Show,
+    /// Counts jobs: updates name the job they belong to.
     pub serial: u64,
 }
 
@@ -47,11 +52,15 @@ pub struct Job {
 pub enum Update {
     /// A pass's image and where the refinement stands.
     Frame {
+        /// The job it belongs to.
         serial: u64,
+        /// The image so far.
         image: Arc<Framebuffer>,
+        /// Passes, samples and error estimate so far.
         report: PassReport,
         /// Rays per second over the render so far, where counted.
         rays_per_second: Option<f64>,
+        /// What the title bar says of it.
         label: String,
         /// A preview (`PREVIEW_ABOVE`): not the view's image, never saved.
         preview: bool,
@@ -64,9 +73,12 @@ pub enum Update {
     Note(String),
     /// The refinement of job `serial` ended, and why.
     Stopped {
+        /// The job that stopped.
         serial: u64,
+        /// Why it stopped.
         why: Stopped,
     },
+    /// The render failed (the error's message).
     Failed(String),
 }
 
@@ -74,7 +86,9 @@ pub enum Update {
 /// current job is superseded.
 #[derive(Default)]
 pub struct Control {
+    /// The job to start next; the thread takes it.
     pub next: Mutex<Option<Job>>,
+    /// Whether refinement waits.
     pub paused: AtomicBool,
     /// Also every renderer's cancel flag (`Renderer::set_cancel`): a new
     /// job ends the pass in flight, not only the passes after it.
@@ -82,6 +96,7 @@ pub struct Control {
     /// When `cancel` was first set since the job in flight began: how long
     /// the render took to answer.
     cancelled_at: Mutex<Option<Instant>>,
+    /// The window closed: the thread ends.
     pub quit: AtomicBool,
     /// The window, set before the first job: the device presents to it
     /// where it can (`device::Screen`).
@@ -91,6 +106,7 @@ pub struct Control {
 }
 
 impl Control {
+    /// Hands `job` to the thread, cancelling the one in flight.
     pub fn submit(&self, job: Job) {
         *self.next.lock().unwrap_or_else(|e| e.into_inner()) = Some(job);
         self.cancelled_at

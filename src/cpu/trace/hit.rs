@@ -32,6 +32,7 @@ pub fn rays_cast() -> [u64; 2] {
     RAYS.with(std::cell::Cell::get)
 }
 
+/// A ray from `origin` along `dir` at `time`, with what the tests precompute.
 #[inline(always)]
 pub fn make_ray<R: Real>(origin: R::V3, dir: R::V3, time: R) -> Ray<R> {
     let inv_dir = R::v3(
@@ -81,6 +82,8 @@ pub fn ray_with_inverse<R: Real>(origin: R::V3, dir: R::V3, inv_dir: R::V3, time
     }
 }
 
+/// The camera ray through pixel (x, y) at `offset` within it ([0,1)², from
+/// its top-left corner), at `time`; the classic camera at the origin.
 pub fn camera_ray<R: Real>(scene: &CpuScene<R>, x: u32, y: u32, offset: [R; 2], time: R) -> Ray<R> {
     let (w, h) = (R::from_u32(scene.size[0]), R::from_u32(scene.size[1]));
     let ndc_x = (R::TWO * (R::from_u32(x) + offset[0]) / w - R::ONE) * scene.half_extent[0];
@@ -89,10 +92,12 @@ pub fn camera_ray<R: Real>(scene: &CpuScene<R>, x: u32, y: u32, offset: [R; 2], 
     make_ray(zero, R::normalize(R::v3(ndc_x, ndc_y, -R::ONE)), time)
 }
 
+/// The camera ray through pixel (x, y)'s centre at time 0.
 pub fn pixel_ray<R: Real>(scene: &CpuScene<R>, x: u32, y: u32) -> Ray<R> {
     camera_ray(scene, x, y, [R::HALF, R::HALF], R::ZERO)
 }
 
+/// Sphere `index` where it is at `time` (with motion blur).
 pub fn sphere_at<R: Real>(scene: &CpuScene<R>, index: usize, time: R) -> Sphere<R> {
     let mut s = scene.spheres[index];
     if scene.motion_blur {
@@ -101,6 +106,7 @@ pub fn sphere_at<R: Real>(scene: &CpuScene<R>, index: usize, time: R) -> Sphere<
     s
 }
 
+/// Triangle `index`'s corners where they are at `time` (with motion blur).
 pub fn triangle_at<R: Real>(scene: &CpuScene<R>, index: usize, time: R) -> [R::V3; 3] {
     let mut tri = scene.triangles[index];
     if scene.motion_blur {
@@ -110,6 +116,7 @@ pub fn triangle_at<R: Real>(scene: &CpuScene<R>, index: usize, time: R) -> [R::V
     tri
 }
 
+/// Light `index` where it is at `time` (with motion blur).
 pub fn light_at<R: Real>(scene: &CpuScene<R>, index: usize, time: R) -> Light<R> {
     let mut light = scene.lights[index];
     if scene.motion_blur {
@@ -118,6 +125,8 @@ pub fn light_at<R: Real>(scene: &CpuScene<R>, index: usize, time: R) -> Light<R>
     light
 }
 
+/// Where the ray enters the box, conservatively (the box scaled by
+/// `BOX_T_SCALE`), clamped to 0; `T_INF` when it misses or starts past `t_max`.
 pub fn hit_aabb<R: Real>(ray: &Ray<R>, bmin: [f32; 3], bmax: [f32; 3], t_max: R) -> R {
     let t0 = (R::v3_from_f32(bmin) - ray.origin) * ray.inv_dir;
     let t1 = (R::v3_from_f32(bmax) - ray.origin) * ray.inv_dir;
@@ -150,6 +159,7 @@ pub fn sphere_roots<R: Real>(ray: &Ray<R>, s: &Sphere<R>, band: R) -> [R; 2] {
     [c / q, q / a]
 }
 
+/// The nearest root in (0, `t_max`), or `T_INF` (the robust method).
 pub fn hit_sphere<R: Real>(ray: &Ray<R>, s: &Sphere<R>, t_max: R, band: R) -> R {
     let [t0, t1] = sphere_roots(ray, s, band);
     let t_lo = t0.min(t1);
@@ -182,6 +192,8 @@ pub fn hit_sphere_through_end<R: Real>(ray: &Ray<R>, s: &Sphere<R>, band: R) -> 
     }
 }
 
+/// The textbook quadratic's nearest root in (0, `t_max`), or `T_INF`: the
+/// naive method, kept to show what the robust one fixes.
 pub fn hit_sphere_naive<R: Real>(ray: &Ray<R>, s: &Sphere<R>, t_max: R) -> R {
     let oc = ray.origin - s.center;
     let a = R::dot(ray.dir, ray.dir);
@@ -203,6 +215,8 @@ pub fn hit_sphere_naive<R: Real>(ray: &Ray<R>, s: &Sphere<R>, t_max: R) -> R {
     R::T_INF
 }
 
+/// Möller-Trumbore with an epsilon on the determinant: the naive method.
+/// (t, b1, b2), t = `T_INF` on a miss.
 pub fn hit_triangle_naive<R: Real>(ray: &Ray<R>, tri: &[R::V3; 3], t_max: R) -> (R, R, R) {
     let miss = (R::T_INF, R::ZERO, R::ZERO);
     let e1 = tri[1] - tri[0];
@@ -505,6 +519,7 @@ fn traverse_from<R: Real>(
     }
 }
 
+/// The closest hit of `ray` with t > 0, or `NO_HIT`.
 pub fn trace_closest<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>) -> Hit<R> {
     count_ray(0);
     traverse(scene, ray, R::T_INF, false, &[], R::ZERO)
@@ -550,6 +565,8 @@ pub fn in_plane_graze<R: Real>(sp: &SurfacePoint<R>, origin: R::V3, target: R::V
     }
 }
 
+/// `p` moved off its surface along `n`: whole ulps (robust) or a fixed
+/// distance (naive).
 pub fn offset_ray<R: Real>(scene: &CpuScene<R>, p: R::V3, n: R::V3, scale: R::V3) -> R::V3 {
     match scene.methods {
         Methods::Robust => R::offset_ray(p, n, scale),
@@ -557,6 +574,7 @@ pub fn offset_ray<R: Real>(scene: &CpuScene<R>, p: R::V3, n: R::V3, scale: R::V3
     }
 }
 
+/// `v` at unit length, or `fallback` where it has none.
 pub fn safe_normalize<R: Real>(v: R::V3, fallback: R::V3) -> R::V3 {
     let len2 = R::dot(v, v);
     if len2 > R::ZERO {
@@ -566,6 +584,8 @@ pub fn safe_normalize<R: Real>(v: R::V3, fallback: R::V3) -> R::V3 {
     }
 }
 
+/// `x` to the power `y` as the Phong term needs it: 1 when `y` is 0 (C's `pow`
+/// gives 0^0 = 1), 0 for a base of 0 or below (never NaN).
 pub fn pow_c<R: Real>(x: R, y: R) -> R {
     if y == R::ZERO {
         return R::ONE;

@@ -11,15 +11,23 @@ use crate::layout::{LIGHT_POINT, LIGHT_RECT, LIGHT_SPHERE, SPHERE_BIT};
 use crate::methods::Methods;
 use crate::scene::{Effects, LightShape, Scene};
 
+/// `Hit::prim` of a ray that hit nothing.
 pub const NO_HIT: u32 = u32::MAX;
 
+/// A sphere as the CPU reference reads it.
 #[derive(Clone, Copy, Debug)]
 pub struct Sphere<R: Real> {
+    /// The centre (at time 0 when it moves).
     pub center: R::V3,
+    /// The radius.
     pub radius: R,
+    /// Diffuse colour.
     pub kd: R::V3,
+    /// Specular colour.
     pub ks: R::V3,
+    /// Phong exponent.
     pub shininess: R,
+    /// Scene units a second it moves (zero when still).
     pub velocity: R::V3,
 }
 
@@ -28,25 +36,39 @@ pub struct Sphere<R: Real> {
 /// would be most of a big scene's memory here too).
 #[derive(Clone, Copy, Debug)]
 pub struct VertexShading<R: Real> {
+    /// The corner's shading normal (not normalised).
     pub normal: R::V3,
+    /// Index into `CpuScene::materials`.
     pub material: u32,
 }
 
+/// One distinct (kd, ks, shininess) of the triangle corners.
 #[derive(Clone, Copy, Debug)]
 pub struct SurfaceMaterial<R: Real> {
+    /// Diffuse colour.
     pub kd: R::V3,
+    /// Specular colour.
     pub ks: R::V3,
+    /// Phong exponent.
     pub shininess: R,
 }
 
+/// A light as the CPU reference reads it (the shader's `GpuLight`).
 #[derive(Clone, Copy, Debug)]
 pub struct Light<R: Real> {
+    /// Point lights: the light; area lights: the centre.
     pub position: R::V3,
+    /// The light's colour.
     pub color: R::V3,
+    /// `LIGHT_POINT`, `LIGHT_SPHERE` or `LIGHT_RECT`.
     pub kind: u32,
+    /// Sphere lights only.
     pub radius: R,
+    /// Rectangle lights only: the first edge, centred on `position`.
     pub edge_u: R::V3,
+    /// Rectangle lights only: the second edge.
     pub edge_v: R::V3,
+    /// Scene units a second the light moves (motion blur).
     pub velocity: R::V3,
 }
 
@@ -56,29 +78,44 @@ pub struct Light<R: Real> {
 /// once per prepared scene (`render::Renderer`), as the GPU packs its
 /// buffers once.
 pub struct CpuScene<'a, R: Real> {
+    /// The spheres.
     pub spheres: &'a [Sphere<R>],
+    /// The triangles' corner positions.
     pub triangles: &'a [[R::V3; 3]],
+    /// Per triangle, scene units a second it moves (read with motion blur only).
     pub triangle_velocity: &'a [R::V3],
+    /// Per triangle, its corners' normals and materials.
     pub shading: &'a [[VertexShading<R>; 3]],
+    /// The distinct materials of the triangle corners.
     pub materials: &'a [SurfaceMaterial<R>],
+    /// The lights, in render space.
     pub lights: Vec<Light<R>>,
     /// The BVH collapsed to four children a node, with its leaves'
     /// triangles in blocks for the SIMD test (`wide`).
     pub wide: &'a WideBvh,
+    /// Leaf references into the spheres (`SPHERE_BIT`) and triangles.
     pub prim_refs: &'a [u32],
     /// Per light, the surfaces through it (`lights_on_surfaces`).
     pub surfaces_at_lights: &'a [Vec<u32>],
+    /// The ambient colour, added once.
     pub ambient: R::V3,
+    /// The colour of rays that hit nothing.
     pub background: R::V3,
+    /// The camera's half extent of the image plane at distance 1 (x, y).
     pub half_extent: [R; 2],
+    /// Image width and height in pixels.
     pub size: [u32; 2],
     /// The shader's `ROBUST` override.
     pub methods: Methods,
     /// The shader's `MOTION_BLUR` override.
     pub motion_blur: bool,
+    /// Seed of the per-pixel sample hash.
     pub seed: u32,
+    /// Samples per pixel.
     pub spp: u32,
+    /// Shadow samples per area light.
     pub shadow_samples: u32,
+    /// Reflection bounces after the primary hit.
     pub reflect_depth: u32,
     /// Seconds the shutter is open (0 without motion blur).
     pub shutter: R,
@@ -251,21 +288,34 @@ impl<'a, R: Real> CpuScene<'a, R> {
     }
 }
 
+/// The closest hit of a ray.
 #[derive(Clone, Copy, Debug)]
 pub struct Hit<R: Real> {
+    /// Distance along the ray.
     pub t: R,
+    /// The primitive hit (`SPHERE_BIT` marks a sphere), or `NO_HIT`.
     pub prim: u32,
+    /// First barycentric coordinate (triangles).
     pub b1: R,
+    /// Second barycentric coordinate (triangles).
     pub b2: R,
 }
 
+/// What shading needs of a hit point.
 #[derive(Clone, Copy, Debug)]
 pub struct SurfacePoint<R: Real> {
+    /// The point.
     pub p: R::V3,
+    /// The shading normal, unit length.
     pub n: R::V3,
+    /// The geometric normal: the triangle's plane, unit length (spheres: `n`).
     pub ng: R::V3,
+    /// Per axis, the size the offset of a ray leaving `p` scales with.
     pub scale: R::V3,
+    /// Diffuse colour.
     pub kd: R::V3,
+    /// Specular colour.
     pub ks: R::V3,
+    /// Phong exponent.
     pub shininess: R,
 }

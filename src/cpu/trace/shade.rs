@@ -15,6 +15,8 @@ use super::hit::*;
 use super::scene::*;
 use crate::cpu::real::Ray;
 
+/// What shading needs of `hit`, a hit of `ray`: the point, its normals and
+/// material (a triangle's interpolated barycentrically).
 pub fn surface_point<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>, hit: &Hit<R>) -> SurfacePoint<R> {
     let index = (hit.prim & !SPHERE_BIT) as usize;
     if hit.prim & SPHERE_BIT != 0 {
@@ -57,13 +59,21 @@ pub fn surface_point<R: Real>(scene: &CpuScene<R>, ray: &Ray<R>, hit: &Hit<R>) -
     }
 }
 
+/// One light's share at a shaded point, and what `glint render --path` shows
+/// of it.
 #[derive(Clone, Copy, Debug)]
 pub struct LightTerm<R: Real> {
+    /// Where the shadow ray started.
     pub origin: R::V3,
+    /// What blocked it (`prim == NO_HIT`: nothing).
     pub blocker: Hit<R>,
+    /// L·N (unclamped; 0 when blocked).
     pub ln: R,
+    /// max(R·V, 0) (0 when blocked).
     pub rv: R,
+    /// `rv` to the power shininess (0 when blocked).
     pub spec: R,
+    /// The light's colour times the Phong terms (zero when blocked).
     pub contribution: R::V3,
 }
 
@@ -148,10 +158,14 @@ pub fn point_shading<R: Real>(
     term
 }
 
+/// Which sample of which pixel is being shaded: the random streams' key.
 #[derive(Clone, Copy, Debug)]
 pub struct SampleKey<R: Real> {
+    /// `y * width + x`.
     pub pixel: u32,
+    /// The sample's index within the pixel.
     pub sample: u32,
+    /// The sample's time within the shutter (motion blur).
     pub time: R,
 }
 
@@ -167,6 +181,9 @@ fn basis_v<R: Real>(w: R::V3) -> R::V3 {
     R::v3(w[0] * w[1] * a, s + w[1] * w[1] * a, -w[1])
 }
 
+/// The point of `light` that sample `uv` (in [0,1)²) picks as seen from `p`:
+/// rectangle lights by area, sphere lights uniformly over the disc they show
+/// facing `p`.
 pub fn light_sample_point<R: Real>(light: &Light<R>, p: R::V3, uv: [R; 2]) -> R::V3 {
     if light.kind == LIGHT_RECT {
         return light.position
@@ -180,6 +197,8 @@ pub fn light_sample_point<R: Real>(light: &Light<R>, p: R::V3, uv: [R; 2]) -> R:
     light.position + basis_u::<R>(w) * (r * phi.cos()) + basis_v::<R>(w) * (r * phi.sin())
 }
 
+/// The share of area `light` at `sp`: the mean of its shadow samples, each
+/// a point term towards a point of the light (`stream` keys their draws).
 pub fn area_term<R: Real>(
     scene: &CpuScene<R>,
     sp: &SurfacePoint<R>,
@@ -232,6 +251,8 @@ pub fn area_term<R: Real>(
     total
 }
 
+/// The share of light `i` at `sp`, seen along `view`, on reflection bounce
+/// `bounce`.
 pub fn light_term<R: Real>(
     scene: &CpuScene<R>,
     sp: &SurfacePoint<R>,
@@ -254,12 +275,16 @@ pub fn light_term<R: Real>(
     point_term(scene, sp, view, light.position, light.color, key.time, skip)
 }
 
+/// Phong shading of a point: its colour and which lights it saw.
 #[derive(Clone, Copy, Debug)]
 pub struct Shading<R: Real> {
+    /// Ambient plus every light's share, not yet clamped.
     pub color: R::V3,
+    /// Bit i set: light i's shadow ray was blocked (lights past 31 set bit 31).
     pub shadow_mask: u32,
 }
 
+/// Ambient plus every light's share at `sp` seen along `view`.
 pub fn shade_phong<R: Real>(
     scene: &CpuScene<R>,
     sp: &SurfacePoint<R>,
@@ -281,15 +306,20 @@ pub fn shade_phong<R: Real>(
     out
 }
 
+/// A primary ray's hit and its colour before reflections.
 #[derive(Clone, Copy, Debug)]
 pub struct PixelResult<R: Real> {
+    /// What the ray hit (`NO_HIT`: the background).
     pub hit: Hit<R>,
     /// Not yet clamped.
     pub color: R::V3,
+    /// Bit i set: light i's shadow ray was blocked (lights past 31 set bit 31).
     pub shadow_mask: u32,
+    /// `FLAG_NONFINITE_COLOR` and `FLAG_NONFINITE_SURFACE`, as the shader's probe.
     pub flags: u32,
 }
 
+/// Traces `ray` and shades what it hits (the background where nothing).
 pub fn trace_primary<R: Real>(
     scene: &CpuScene<R>,
     ray: &Ray<R>,
@@ -321,6 +351,8 @@ pub fn trace_primary<R: Real>(
     }
 }
 
+/// The colour one sample's primary ray brings back: the first hit shaded,
+/// clamped, then its reflections.
 pub fn radiance<R: Real>(scene: &CpuScene<R>, primary: &Ray<R>, key: &SampleKey<R>) -> R::V3 {
     let first = trace_primary(scene, primary, key);
     let local = R::clamp01(first.color);
@@ -367,6 +399,8 @@ pub(crate) fn reflect_path<R: Real>(
     color + weight * local
 }
 
+/// Sample `s` of `n` of pixel (x, y): the pixel position, time and lights
+/// sampled as the shader samples them.
 pub fn sample_color<R: Real>(scene: &CpuScene<R>, x: u32, y: u32, s: u32, n: u32) -> R::V3 {
     let pixel = y.wrapping_mul(scene.size[0]).wrapping_add(x);
     let draw = |sample, stream, index| rng(scene.seed, pixel, sample, stream, index);
@@ -391,6 +425,7 @@ pub fn sample_color<R: Real>(scene: &CpuScene<R>, x: u32, y: u32, s: u32, n: u32
     radiance(scene, &camera_ray(scene, x, y, offset, time), &key)
 }
 
+/// Pixel (x, y)'s colour: the mean of its `spp` samples.
 pub fn pixel_color<R: Real>(scene: &CpuScene<R>, x: u32, y: u32) -> R::V3 {
     let n = scene.spp.max(1);
     if n == 1 {
@@ -403,6 +438,7 @@ pub fn pixel_color<R: Real>(scene: &CpuScene<R>, x: u32, y: u32) -> R::V3 {
     sum * (R::ONE / R::from_u32(n))
 }
 
+/// The key of a pixel's first sample at time 0 (for probes).
 pub fn centre_key<R: Real>(scene: &CpuScene<R>, x: u32, y: u32) -> SampleKey<R> {
     SampleKey {
         pixel: y.wrapping_mul(scene.size[0]).wrapping_add(x),

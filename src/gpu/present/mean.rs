@@ -26,7 +26,9 @@ pub const RESOLVE_WGSL: &str = include_str!("../../../shaders/resolve.wgsl");
 pub struct FrameTarget {
     pub(crate) device: vk::Device,
     pub(crate) buffer: vk::Buffer,
+    /// Width in pixels.
     pub width: u32,
+    /// Height in pixels.
     pub height: u32,
 }
 
@@ -38,6 +40,8 @@ struct Images {
     shown: Buffer,
 }
 
+/// A progressive render's running mean on the device, packed to the
+/// swapchain's bytes each pass (`gpu::present`).
 pub struct DeviceMean {
     shared: Arc<Shared>,
     resolve: SmallPipeline,

@@ -32,6 +32,8 @@ struct Chain {
     done: Vec<vk::Semaphore>,
 }
 
+/// The window's swapchain: copies packed pixels into its images and
+/// presents them.
 pub struct Presenter {
     shared: Arc<Shared>,
     loader: ash::khr::swapchain::Device,

@@ -32,6 +32,8 @@ pub(super) const BUDGET_BACKOFF: u32 = 8;
 
 pub use crate::gpu::driver::DEFAULT_PASS_BUDGET;
 
+/// How the GPU renderer renders: tiles, pass budget and timeout, methods,
+/// effects and the shader's features.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct GpuRenderOptions {
     /// Tile edge in pixels; bounds the pixels in one submit.

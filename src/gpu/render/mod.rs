@@ -69,6 +69,7 @@ pub struct GpuRenderer {
 }
 
 impl GpuRenderer {
+    /// A renderer on `ctx`'s device, with its trace pipeline built.
     pub fn new(ctx: &Context) -> Result<GpuRenderer, GpuError> {
         let pipeline = TracePipeline::new(ctx)?;
         Ok(GpuRenderer {

@@ -11,8 +11,11 @@ use crate::Error;
 /// Median and spread of repeated timings.
 #[derive(Clone, Copy, Debug, PartialEq)]
 pub struct Stat {
+    /// The median.
     pub median: Duration,
+    /// The fastest.
     pub min: Duration,
+    /// The slowest.
     pub max: Duration,
 }
 
@@ -31,6 +34,7 @@ impl std::fmt::Display for Stat {
 }
 
 impl Stat {
+    /// The statistics of `samples`; None when there are none.
     pub fn of(mut samples: Vec<Duration>) -> Option<Stat> {
         if samples.is_empty() {
             return None;
@@ -52,6 +56,7 @@ impl Stat {
 
 /// Where the course's classic scenes live, relative to the repository root.
 pub const CLASSIC_DIR: &str = "../shared/scenes/classic";
+/// The classic scenes' file stems, in the order reports list them.
 pub const CLASSIC_SCENES: [&str; 5] = ["test1", "test2", "spheres", "table", "SIGGRAPH"];
 
 /// The default scene set, relative to the repository root: the classic scenes

@@ -20,19 +20,26 @@ use crate::render::{Backend, RenderOptions, Renderer};
 use crate::scene::read_scene;
 use crate::Error;
 
+/// What `glint bench embree` measures: glint against the Embree harness.
 #[derive(Clone, Debug)]
 pub struct EmbreeOptions {
     /// The harness program.
     pub harness: PathBuf,
+    /// The scene files, in order.
     pub scenes: Vec<PathBuf>,
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
     /// Renders per measurement (glint's, and the harness's `--runs`).
     pub repeat: usize,
     /// Rounds of all four programs per scene.
     pub rounds: usize,
+    /// Render glint on the Vulkan device.
     pub gpu: bool,
+    /// Render glint on the CPU reference (f32).
     pub cpu: bool,
+    /// Which Vulkan device (`--device`); None: the first.
     pub device: Option<DeviceSelector>,
     /// `GpuRenderOptions::uniform_lists`.
     pub uniform_lists: bool,
@@ -41,7 +48,9 @@ pub struct EmbreeOptions {
 /// The harness's two traversal modes.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Mode {
+    /// One ray at a time (`rtcIntersect1`, `rtcOccluded1`).
     Single,
+    /// Eight rays at a time (`rtcIntersect8`, `rtcOccluded8`).
     Packet8,
 }
 
@@ -128,13 +137,19 @@ fn last_lines(text: &str, n: usize) -> Option<String> {
 /// One scene's medians, one per round.
 #[derive(Clone, Debug, Default)]
 pub struct EmbreeScene {
+    /// The scene file's name.
     pub name: String,
     /// Rays one render casts: glint's count, the harness's.
     pub rays: Option<u64>,
+    /// Rays one render casts, as the harness counts them.
     pub harness_rays: Option<u64>,
+    /// Per round, glint's CPU reference.
     pub cpu: Vec<Duration>,
+    /// Per round, glint on the Vulkan device.
     pub gpu: Vec<Duration>,
+    /// Per round, the harness with single rays.
     pub single: Vec<Duration>,
+    /// Per round, the harness with 8-ray packets.
     pub packet8: Vec<Duration>,
 }
 
@@ -151,15 +166,24 @@ impl EmbreeScene {
     }
 }
 
+/// What `glint bench embree` measured, and on what.
 #[derive(Clone, Debug)]
 pub struct EmbreeReport {
+    /// The harness program.
     pub harness: PathBuf,
+    /// The Vulkan device's name, where glint rendered on it.
     pub device: Option<String>,
+    /// Threads both renderers used.
     pub threads: usize,
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
+    /// Renders per measurement.
     pub repeat: usize,
+    /// Rounds of all programs per scene.
     pub rounds: usize,
+    /// Per scene, in the order given.
     pub scenes: Vec<EmbreeScene>,
 }
 

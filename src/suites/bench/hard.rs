@@ -19,9 +19,12 @@ use crate::render::{Backend, RenderOptions, Renderer};
 use crate::scene::{read_scene, Effects};
 use crate::Error;
 
+/// What `glint bench hard` runs.
 #[derive(Clone, Debug)]
 pub struct HardOptions {
+    /// Render on the Vulkan device too.
     pub gpu: bool,
+    /// Which Vulkan device (`--device`); None: the first.
     pub device: Option<DeviceSelector>,
     /// Renders per timing (median).
     pub repeat: usize,
@@ -31,6 +34,7 @@ pub struct HardOptions {
     pub examples: usize,
 }
 
+/// What `glint bench hard` found.
 pub struct HardReport {
     /// Counts table, then (with timing) the cost table, in markdown.
     pub markdown: String,

@@ -16,24 +16,38 @@ use crate::scene::read_scene;
 use crate::timing::{CPU_TIME_NS, GPU_TIME_NS};
 use crate::Error;
 
+/// What `glint bench` measures: which scenes, at what size, how often, on
+/// which backends.
 #[derive(Clone, Debug)]
 pub struct BenchOptions {
+    /// The scene files, in order.
     pub scenes: Vec<PathBuf>,
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
+    /// Renders per scene and backend (their median and spread are reported).
     pub repeat: usize,
+    /// Render on the Vulkan device.
     pub gpu: bool,
+    /// Render on the CPU reference in f32.
     pub cpu_f32: bool,
+    /// Render on the CPU reference in f64.
     pub cpu_f64: bool,
+    /// Which Vulkan device (`--device`); None: the first.
     pub device: Option<DeviceSelector>,
     /// `GpuRenderOptions::uniform_lists`.
     pub uniform_lists: bool,
 }
 
+/// One scene's measurements.
 #[derive(Clone, Debug)]
 pub struct SceneResult {
+    /// The scene file's name.
     pub name: String,
+    /// Spheres plus triangles.
     pub primitives: usize,
+    /// Time to build the BVH.
     pub bvh: Stat,
     /// Per backend ("GPU", "f32", "f64"), the one-off time to put the
     /// scene in the form it renders from (the GPU's packed buffers, the
@@ -49,25 +63,37 @@ pub struct SceneResult {
     /// timestamps, `timing::GPU_TIME_NS`), where the queue has them: the
     /// share of `gpu`'s wall clock the device was busy.
     pub gpu_time: Option<Stat>,
+    /// Wall time per render on the CPU reference in f32.
     pub cpu_f32: Option<Stat>,
+    /// Wall time per render on the CPU reference in f64.
     pub cpu_f64: Option<Stat>,
     /// The CPU renders' thread CPU time (`timing::CPU_TIME_NS`) per
     /// render, where the system reports it: what the wall times above
     /// leave in (time the threads waited for a core, a virtual machine's
     /// stolen time) it leaves out.
     pub cpu_f32_time: Option<Stat>,
+    /// As `cpu_f32_time`, for f64.
     pub cpu_f64_time: Option<Stat>,
 }
 
+/// What `glint bench` measured, and on what.
 #[derive(Clone, Debug)]
 pub struct BenchReport {
+    /// The Vulkan device's name, where the GPU rendered.
     pub device: Option<String>,
+    /// Time to create the Vulkan device.
     pub device_creation: Option<Duration>,
+    /// Time to build the trace pipeline.
     pub pipeline_build: Option<Duration>,
+    /// Threads the CPU reference rendered on.
     pub cpu_threads: usize,
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
+    /// Renders per scene and backend.
     pub repeat: usize,
+    /// Per scene, in the order given.
     pub scenes: Vec<SceneResult>,
 }
 

@@ -23,10 +23,15 @@ use crate::Error;
 /// feature set against the generic one (every effect compiled in, switched
 /// by the settings), in SPIR-V size, pipeline build time and render time.
 pub struct SpecializeOptions {
+    /// The scene files, in order.
     pub scenes: Vec<PathBuf>,
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
+    /// Renders per measurement (the median is reported).
     pub repeat: usize,
+    /// Which Vulkan device (`--device`); None: the first.
     pub device: Option<DeviceSelector>,
 }
 
@@ -38,6 +43,7 @@ pub fn specialize_scenes(note: &mut dyn FnMut(&str)) -> Vec<PathBuf> {
     out
 }
 
+/// Runs `glint bench specialize`; the report in markdown.
 pub fn run_specialize(
     options: &SpecializeOptions,
     progress: &mut dyn FnMut(&str),

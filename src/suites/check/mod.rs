@@ -4,8 +4,6 @@
 //! with what glint chose for the device, the time and the rays per second.
 //! `report` prints the table and writes JUnit XML.
 
-#![warn(missing_docs)]
-
 mod image_test;
 mod judge;
 pub mod report;

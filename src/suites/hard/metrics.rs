@@ -41,6 +41,7 @@ pub enum Metric {
 }
 
 impl Metric {
+    /// Every metric, in report order.
     pub const ALL: [Metric; 7] = [
         Metric::Nan,
         Metric::Crack,
@@ -51,6 +52,7 @@ impl Metric {
         Metric::Seam,
     ];
 
+    /// What reports call it.
     pub fn name(self) -> &'static str {
         match self {
             Metric::Nan => "NaN",
@@ -75,6 +77,7 @@ impl fmt::Display for Metric {
 pub struct Counts(pub [usize; 7]);
 
 impl Counts {
+    /// The count of `m`.
     pub fn get(&self, m: Metric) -> usize {
         self.0[Metric::ALL.iter().position(|&x| x == m).expect("in ALL")]
     }

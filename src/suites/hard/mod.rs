@@ -28,8 +28,10 @@ pub use metrics::{count, Counts, Metric};
 /// Where the suite's scene files live, relative to the repository root.
 pub const SCENE_DIR: &str = "scenes/hard";
 
+/// One scene of the hard-cases suite and what it checks.
 #[derive(Clone, Debug)]
 pub struct Case {
+    /// The scene's name (its file's stem).
     pub name: String,
     /// One line: what makes it hard.
     pub what: String,
@@ -38,13 +40,16 @@ pub struct Case {
     /// As parsed from `text` (so normals are renormalized and warnings
     /// recorded exactly as for the file).
     pub scene: Scene,
+    /// Image width in pixels.
     pub width: u32,
+    /// Image height in pixels.
     pub height: u32,
     /// The counts that must be zero with the robust methods.
     pub checks: Vec<Metric>,
 }
 
 impl Case {
+    /// The classic camera at the case's size.
     pub fn camera(&self) -> Camera {
         Camera::new(self.width, self.height)
     }
@@ -127,11 +132,14 @@ pub fn write_scenes(dir: &std::path::Path) -> Result<usize, Error> {
 /// What rendered a probe image.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum Runner {
+    /// The Vulkan device.
     Gpu,
+    /// The CPU reference in f32.
     CpuF32,
 }
 
 impl Runner {
+    /// How the report names it.
     pub fn name(self) -> &'static str {
         match self {
             Runner::Gpu => "GPU",
@@ -182,10 +190,15 @@ pub fn probe(
 
 /// One row of the suite's report.
 pub struct Row {
+    /// The case's name.
     pub case: String,
+    /// What rendered it.
     pub runner: Runner,
+    /// Robust or naive ray offsets and intersection.
     pub methods: Methods,
+    /// How many pixels each metric counted.
     pub counts: Counts,
+    /// The metrics that must be zero with the robust methods.
     pub checks: Vec<Metric>,
     /// Per metric with a count, the `--pixel` commands of its first pixels.
     pub examples: Vec<(Metric, Vec<String>)>,
