@@ -99,8 +99,8 @@ impl fmt::Display for SceneInfo<'_> {
         let e = &self.effects;
         writeln!(
             f,
-            "settings    reflect {}, spp {}, shadow samples {}, shutter {}, seed {}, fps {}",
-            e.reflect_depth, e.spp, e.shadow_samples, e.shutter, e.seed, e.fps
+            "settings    reflect {}, spp {}, shadow samples {}, shutter {}, seed {}, fps {}, sampler {}",
+            e.reflect_depth, e.spp, e.shadow_samples, e.shutter, e.seed, e.fps, e.sampler
         )?;
         let feat = Features::of(s, e);
         let mut calls: Vec<String> = Vec::new();

@@ -340,15 +340,16 @@ fn slope(points: &[(f64, f64)]) -> f64 {
 }
 
 /// The Monte Carlo rate: with one shadow sample per pixel sample, the
-/// pixel estimate averages independent draws over pixel area, light area
-/// and shutter time, so its RMS error against a converged CPU f64 image
-/// falls as n^-1/2. A biased sampler (a wrong pdf, a stratum never drawn,
+/// `stratified` sampler's pixel estimate averages independent draws over
+/// light area and shutter time (the pixel area stratified), so its RMS
+/// error against a converged CPU f64 image falls as n^-1/2 (`sobol`, the
+/// default, faster: tests/samplers.rs). A biased sampler (a wrong pdf, a stratum never drawn,
 /// samples correlated across n) levels off instead and flattens the slope.
 /// Tolerance: the fitted slope lies in [-0.65, -0.4] (stratifying the pixel
 /// may steepen it a little; four points of noise move it by ~0.05).
 #[test]
 fn error_falls_at_the_monte_carlo_rate() {
-    let text = "4\namb: 0.05 0.05 0.05\nshadow_samples: 1\nshutter: 1\n\
+    let text = "4\namb: 0.05 0.05 0.05\nshadow_samples: 1\nshutter: 1\nsampler: stratified\n\
         light\npos: 0 5 -6\ncol: 0.9 0.9 0.9\nrad: 1.5\n\
         sphere\npos: 0 0 -6\nrad: 0.8\ndif: 0.7 0.3 0.2\nspe: 0.3 0.3 0.3\nshi: 20\nvel: 12 0 0\n\
         triangle\n\

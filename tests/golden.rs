@@ -28,8 +28,18 @@ fn blessing() -> bool {
 /// rounding flip where a value lands within libm's last-ulp differences of
 /// a .5 boundary; the GPU (f32) must match within the tolerances below.
 fn check(name: &str, scene: &Scene) {
+    // f32 vs the f64 golden, measured on lavapipe (Mesa 22.3.6) on
+    // 2026-11-22: at most 6 pixels over 1 level (SIGGRAPH; table 5,
+    // spheres 2, test2 1). Every one sits on a shadow or silhouette
+    // boundary that passes within f32 rounding of the pixel centre (the
+    // f64 image jumps by as much between neighbours there). Allowed:
+    // 1 in 10,000 pixels (30 at 640x480).
+    check_sized(name, scene, W, H, (W * H / 10_000) as usize);
+}
+
+fn check_sized(name: &str, scene: &Scene, w: u32, h: u32, gpu_allowed: usize) {
     let path = repo_path("reference").join(format!("{name}.png"));
-    let f64_render = render_cpu(scene, W, H, Precision::F64, WHITE);
+    let f64_render = render_cpu(scene, w, h, Precision::F64, WHITE);
     if blessing() {
         write_image(&f64_render.to_rgb8(), &path, 95).expect("write golden");
         eprintln!("blessed {}", path.display());
@@ -39,14 +49,8 @@ fn check(name: &str, scene: &Scene) {
         panic!("{e}\nmissing golden: create it with `GLINT_BLESS=1 cargo test --release --test golden`, then review and commit it")
     });
     compare(name, "cpu-f64", &f64_render, &golden, 1.0, 0);
-    if let Some(gpu) = render_gpu(scene, W, H, WHITE) {
-        // f32 vs the f64 golden, measured on lavapipe (Mesa 22.3.6) on
-        // 2026-11-22: at most 6 pixels over 1 level (SIGGRAPH; table 5,
-        // spheres 2, test2 1). Every one sits on a shadow or silhouette
-        // boundary that passes within f32 rounding of the pixel centre (the
-        // f64 image jumps by as much between neighbours there). Allowed:
-        // 1 in 10,000 pixels (30 at 640x480).
-        compare(name, "gpu", &gpu, &golden, 1.0, (W * H / 10_000) as usize);
+    if let Some(gpu) = render_gpu(scene, w, h, WHITE) {
+        compare(name, "gpu", &gpu, &golden, 1.0, gpu_allowed);
     }
 }
 
@@ -93,5 +97,26 @@ fn own_scenes_match_their_goldens() {
         let scene = glint::scene::read_scene(&path).expect("own scene parses");
         let name = path.file_stem().unwrap().to_string_lossy().into_owned();
         check(&name, &scene);
+    }
+}
+
+/// The `stratified` sampler renders the effect scenes as glint did before
+/// the sampler choice existed (`sobol` became the default then): these
+/// goldens were blessed with the code of that time (and the same images
+/// come from today's code with `sampler: stratified`, checked bit for bit in
+/// f32 and f64 when the choice was added). 160x120: all_effects' 512 shadow
+/// rays a pixel in f64.
+#[test]
+fn effect_scenes_with_the_stratified_sampler_match_their_goldens() {
+    for name in ["soft_shadows", "antialias", "motion_blur", "all_effects"] {
+        let path = repo_path(&format!("scenes/effects/{name}.scene"));
+        let mut scene = glint::scene::read_scene(&path).expect("effect scene parses");
+        scene.settings.sampler = Some(glint::scene::Sampler::Stratified);
+        // f32 against f64 with many samples a pixel: a sample position or
+        // shadow ray that f32 rounding flips moves a pixel by up to 1/16 of
+        // its range. Measured on lavapipe (Mesa 22.3.6), 2026-12-06: 2
+        // pixels over 1 level (antialias, 6 levels), none elsewhere.
+        // Allowed: 1 in 2,000 (9 at 160x120).
+        check_sized(&format!("effects-stratified-{name}"), &scene, 160, 120, 9);
     }
 }

@@ -63,7 +63,10 @@ fn structs_match() {
             reflect_depth,
             shutter,
             chunk_shift,
-            addresses
+            addresses,
+            sampling,
+            _pad0,
+            _pad
         ]
     );
     check_struct!(m, "Tile", GpuTile, [origin, size, budget, first, _pad]);
@@ -304,6 +307,11 @@ fn shared_constants_match() {
         Literal::U32(sample::STREAM_LIGHT)
     );
     assert_eq!(constant(&m, "ROTATION"), Literal::U32(sample::ROTATION));
+    assert_eq!(
+        constant(&m, "SAMPLER_STRATIFIED"),
+        Literal::U32(SAMPLER_STRATIFIED)
+    );
+    assert_eq!(constant(&m, "SAMPLER_SOBOL"), Literal::U32(SAMPLER_SOBOL));
     // Compared as bits: the CPU f32 twin must use the shader's exact values.
     let pairs = [
         ("T_INF", <f32 as Real>::T_INF),

@@ -101,7 +101,7 @@ fn malformed_inputs_report_line_col_and_what_was_expected() {
             "1\namb: 0 0 0\ncone\n".into(),
             3,
             1,
-            "expected `sphere`, `triangle`, `light`, `mesh`, `camera` or a setting (`reflect:`, `spp:`, `shadow_samples:`, `shutter:`, `seed:`, `fps:`), found `cone`",
+            "expected `sphere`, `triangle`, `light`, `mesh`, `camera` or a setting (`reflect:`, `spp:`, `shadow_samples:`, `shutter:`, `seed:`, `fps:`, `sampler:`), found `cone`",
         ),
         (
             "1\namb: 0 0 0\nsphere\npos: 0 0 -3\nradius: 1\n".into(),
@@ -276,7 +276,7 @@ fn numbers_beyond_f32_are_located_errors() {
 #[test]
 fn extensions_parse_and_round_trip() {
     use glint::scene::{to_classic_text, LightShape};
-    let text = "5\nAMB: 0.1 0.1 0.1\nreflect: 3\nSPP: 16\nshadow_samples: 8\nshutter: .5\nseed: 42\nfps: 30\n\
+    let text = "5\nAMB: 0.1 0.1 0.1\nreflect: 3\nSPP: 16\nshadow_samples: 8\nshutter: .5\nseed: 42\nfps: 30\nSampler: Stratified\n\
         light\npos: 0 5 0\ncol: 1 1 1\nrad: .25\nvel: 1 0 0\n\
         light\npos: 0 5 -5\ncol: 1 1 1\nedge_u: 1 0 0\nedge_v: 0 0 2\n\
         light\npos: 0 5 -9\ncol: 1 1 1\n\
@@ -295,9 +295,18 @@ fn extensions_parse_and_round_trip() {
             st.shadow_samples,
             st.shutter,
             st.seed,
-            st.fps
+            st.fps,
+            st.sampler
         ),
-        (Some(3), Some(16), Some(8), Some(0.5), Some(42), Some(30.0))
+        (
+            Some(3),
+            Some(16),
+            Some(8),
+            Some(0.5),
+            Some(42),
+            Some(30.0),
+            Some(glint::scene::Sampler::Stratified)
+        )
     );
     assert_eq!(scene.lights[0].shape, LightShape::Sphere { radius: 0.25 });
     assert_eq!(scene.lights[0].velocity, glam::DVec3::X);
@@ -313,7 +322,9 @@ fn extensions_parse_and_round_trip() {
     // A classic scene written back stays classic: no extension appears.
     if let Some(classic) = classic_scene("test2") {
         let text = to_classic_text(&classic);
-        for word in ["reflect:", "spp:", "vel:", "rad: 0", "edge_u:", "shutter:"] {
+        for word in [
+            "reflect:", "spp:", "vel:", "rad: 0", "edge_u:", "shutter:", "sampler:",
+        ] {
             assert!(!text.contains(word), "{word}");
         }
     }
@@ -336,6 +347,16 @@ fn bad_extension_values_are_located() {
             "1\namb: 0 0 0\nshutter: 2\n",
             "3:10",
             "a shutter between 0 (no blur) and 1",
+        ),
+        (
+            "1\namb: 0 0 0\nsampler: halton\n",
+            "3:10",
+            "expected a sampler: `sobol` or `stratified`, found `halton`",
+        ),
+        (
+            "1\namb: 0 0 0\nsampler:",
+            "3:9",
+            "a sampler: `sobol` or `stratified`",
         ),
         (
             "1\namb: 0 0 0\nfps: 0\n",

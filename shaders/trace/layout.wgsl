@@ -104,6 +104,10 @@ struct Frame {
     // normals and materials (layout::ADDRESS_LISTS), two to a vec4 as (low,
     // high) words; only a shader built with ADDRESSES reads them.
     addresses: array<vec4<u32>, 3>,
+    // SAMPLER_SOBOL or SAMPLER_STRATIFIED (see sample.wgsl).
+    sampling: u32,
+    _pad0: u32,
+    _pad: vec2<u32>,
 }
 
 struct Tile {
@@ -354,6 +358,14 @@ const STREAM_LIGHT: u32 = 2u;
 // The index that draws a per-stream value (a stratum rotation) rather than a
 // per-sample one.
 const ROTATION: u32 = 0xffffffffu;
+// Frame.sampling: the samplers of src/scene/settings.rs's Sampler.
+const SAMPLER_STRATIFIED: u32 = 0u;
+const SAMPLER_SOBOL: u32 = 1u;
+// The sobol sampler's index that draws a dimension's key (with ROTATION as
+// the sample), and what tells its coordinates' seeds apart.
+const SOBOL_KEY: u32 = 0xfffffffeu;
+const SOBOL_X: u32 = 0x68bc21ebu;
+const SOBOL_Y: u32 = 0x02e5be93u;
 const PI: f32 = 3.14159265358979;
 // The naive variant's magic numbers: a distance and Möller-Trumbore's
 // determinant epsilon (Möller and Trumbore 1997).

@@ -114,3 +114,82 @@ fn stratified_2d(k: u32, n: u32, rotation: u32, jitter: vec2<f32>) -> vec2<f32> 
     return vec2((f32(cell % cols) + jitter.x) / f32(cols), (f32(cell / cols) + jitter.y) / f32(rows));
 }
 
+
+// The `sobol` sampler: Owen-scrambled Sobol points (Burley, "Practical
+// Hash-based Owen Scrambling", JCGT 9(4) 2020). A 2D dimension of a pixel
+// (its position, an area light's point at one bounce) takes Sobol's first
+// two coordinates, a (0,2)-sequence, so every power-of-two run of a pixel's
+// indices is stratified at every scale at once; each coordinate is
+// Owen-scrambled with a seed of its own, per pixel and dimension (unbiased,
+// and no two pixels share a pattern), and the index is Owen-scrambled too,
+// so that two dimensions read from the same index are not correlated (the
+// time/position trap of docs/effects.md). Scrambling an index below 2^k
+// permutes its low k bits and sets the others to one constant, so the first
+// 2^k samples are still one aligned run: progressive. A 1D dimension (the
+// time) takes the first coordinate alone.
+
+// Laine and Karras's hash: each output bit depends only on the input bits at
+// and below it, which makes reverseBits(laine_karras(reverseBits(x))) a
+// nested uniform (Owen) scramble. Burley's constants.
+fn laine_karras(x: u32, seed: u32) -> u32 {
+    var v = x + seed;
+    v ^= v * 0x6c50b47cu;
+    v ^= v * 0xb82f1e52u;
+    v ^= v * 0xc7afe638u;
+    v ^= v * 0x8d22f6e6u;
+    return v;
+}
+
+fn owen_scramble(x: u32, seed: u32) -> u32 {
+    return reverseBits(laine_karras(reverseBits(x), seed));
+}
+
+// Sobol's second coordinate of index i, bit-reversed: its direction numbers
+// (from the primitive polynomial x + 1) make output bit j (from the top) the
+// xor of the bits k of i with k a superset of j's bits (Pascal's triangle mod
+// 2), a sum over supersets that five shifts compute. The first coordinate
+// is reverseBits(i).
+fn sobol_second_reversed(i: u32) -> u32 {
+    var x = i;
+    x ^= (x >> 1u) & 0x55555555u;
+    x ^= (x >> 2u) & 0x33333333u;
+    x ^= (x >> 4u) & 0x0f0f0f0fu;
+    x ^= (x >> 8u) & 0x00ff00ffu;
+    x ^= (x >> 16u) & 0x0000ffffu;
+    return x;
+}
+
+// The randomisation of one dimension of one pixel: its index shuffle's seed;
+// the coordinates' seeds are hashed from it.
+fn sobol_key(pixel: u32, stream: u32) -> u32 {
+    return rng(pixel, ROTATION, stream, SOBOL_KEY);
+}
+
+// Point i of a pixel's 2D dimension `key`, in [0, 1)^2: each coordinate
+// owen_scramble(Sobol's coordinate of j), written without the two bit
+// reversals that cancel.
+fn sobol_2d(key: u32, i: u32) -> vec2<f32> {
+    let j = owen_scramble(i, key);
+    let x = reverseBits(laine_karras(j, hash_u32(key ^ SOBOL_X)));
+    let y = reverseBits(laine_karras(sobol_second_reversed(j), hash_u32(key ^ SOBOL_Y)));
+    return vec2(unit_float(x), unit_float(y));
+}
+
+// Point i of a pixel's 1D dimension `key`, in [0, 1).
+fn sobol_1d(key: u32, i: u32) -> f32 {
+    let j = owen_scramble(i, key);
+    return unit_float(reverseBits(laine_karras(j, hash_u32(key ^ SOBOL_X))));
+}
+
+// Sample m of the n an area light takes at sample `sample` of a pixel, on
+// stream `stream`, in [0, 1)^2: the light's pattern (stratified), or points
+// sample * n + m of its Sobol dimension, so that all of a pixel's samples
+// together are stratified over the light, not only each sample's n.
+fn area_uv(pixel: u32, sample: u32, stream: u32, m: u32, n: u32) -> vec2<f32> {
+    if (frame.sampling == SAMPLER_SOBOL) {
+        return sobol_2d(sobol_key(pixel, stream), sample * n + m);
+    }
+    let rotation = rng(pixel, sample, stream, ROTATION);
+    let jitter = vec2(unit_float(rng(pixel, sample, stream, 2u * m)), unit_float(rng(pixel, sample, stream, 2u * m + 1u)));
+    return stratified_2d(m, n, rotation, jitter);
+}

@@ -158,15 +158,38 @@ fn basis_v(w: vec3<f32>) -> vec3<f32> {
 
 // The point of area light `light` that sample uv in [0, 1)^2 picks, seen
 // from p. A sphere light is sampled over the disc it shows p (its outline
-// from p, for lights small against their distance), uniformly by area.
+// from p, for lights small against their distance), uniformly by area:
+// stratified maps uv onto it in polar coordinates (r = sqrt(u), angle
+// 2 pi v), sobol with Shirley and Chiu's concentric map, which keeps a
+// stratum compact (a square's strata become pieces of rings, not the polar
+// map's long thin wedges), so the points' stratification reaches the disc.
 fn light_sample_point(light: Light, p: vec3<f32>, uv: vec2<f32>) -> vec3<f32> {
     if (light.kind == LIGHT_RECT) {
         return light.position + (uv.x - 0.5) * light.edge_u + (uv.y - 0.5) * light.edge_v;
     }
     let w = safe_normalize(light.position - p, vec3(0.0, 0.0, 1.0));
+    if (frame.sampling == SAMPLER_SOBOL) {
+        let d = light.radius * concentric_disc(uv);
+        return light.position + d.x * basis_u(w) + d.y * basis_v(w);
+    }
     let r = light.radius * sqrt(uv.x);
     let phi = 2.0 * PI * uv.y;
     return light.position + r * cos(phi) * basis_u(w) + r * sin(phi) * basis_v(w);
+}
+
+// uv in [0, 1)^2 onto the unit disc, uniformly by area (Shirley and Chiu,
+// "A Low Distortion Map Between Disk and Square", 1997).
+fn concentric_disc(uv: vec2<f32>) -> vec2<f32> {
+    let a = 2.0 * uv - vec2(1.0);
+    if (a.x == 0.0 && a.y == 0.0) {
+        return vec2(0.0);
+    }
+    if (abs(a.x) > abs(a.y)) {
+        let phi = 0.25 * PI * (a.y / a.x);
+        return a.x * vec2(cos(phi), sin(phi));
+    }
+    let phi = 0.5 * PI - 0.25 * PI * (a.x / a.y);
+    return a.y * vec2(cos(phi), sin(phi));
 }
 
 // An area light as frame.shadow_samples point lights of colour / count on
@@ -174,16 +197,13 @@ fn light_sample_point(light: Light, p: vec3<f32>, uv: vec2<f32>) -> vec3<f32> {
 // found when every sample is blocked (the point is in the umbra).
 fn area_term(sp: SurfacePoint, view: vec3<f32>, light: Light, stream: u32, key: SampleKey) -> LightTerm {
     let n = max(frame.shadow_samples, 1u);
-    let rotation = rng(key.pixel, key.sample, stream, ROTATION);
     let color = light.color * (1.0 / f32(n));
     var total = LightTerm(vec3(0.0), Hit(0.0, NO_HIT, 0.0, 0.0), 0.0, 0.0, 0.0, vec3(0.0));
     var blocked = 0u;
     var m = 0u;
     for (; m < n; m++) {
         work += 1u;
-        let jitter = vec2(unit_float(rng(key.pixel, key.sample, stream, 2u * m)),
-                          unit_float(rng(key.pixel, key.sample, stream, 2u * m + 1u)));
-        let uv = stratified_2d(m, n, rotation, jitter);
+        let uv = area_uv(key.pixel, key.sample, stream, m, n);
         let term = point_term(sp, view, light_sample_point(light, sp.p, uv), color, key.time, vec2(0u));
         total.contribution += term.contribution;
         total.origin = term.origin;

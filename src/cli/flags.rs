@@ -4,7 +4,7 @@
 use clap::{Args, ValueEnum};
 use glint::gpu::DeviceSelector;
 use glint::render::RenderOptions;
-use glint::scene::{Effects, Settings};
+use glint::scene::{Effects, Sampler, Settings};
 
 use super::values::parse_rgb;
 
@@ -82,6 +82,10 @@ pub struct EffectArgs {
     /// Frames per second: frame i shows the scene at time i / fps.
     #[arg(long, value_name = "F", value_parser = parse_fps)]
     pub fps: Option<f64>,
+    /// How samples are drawn: sobol (the default; Owen-scrambled Sobol
+    /// points) or stratified (jittered grids, glint's images before sobol).
+    #[arg(long, value_name = "NAME", value_parser = parse_sampler)]
+    pub sampler: Option<Sampler>,
 }
 
 impl EffectArgs {
@@ -93,8 +97,19 @@ impl EffectArgs {
             shutter: self.shutter,
             seed: self.seed,
             fps: self.fps,
+            sampler: self.sampler,
         }
     }
+}
+
+fn parse_sampler(s: &str) -> Result<Sampler, String> {
+    Sampler::from_name(s).ok_or_else(|| {
+        let names: Vec<&str> = Sampler::ALL.iter().map(|s| s.name()).collect();
+        format!(
+            "unknown sampler `{s}`; the samplers are {}",
+            names.join(", ")
+        )
+    })
 }
 
 fn parse_shutter(s: &str) -> Result<f64, String> {

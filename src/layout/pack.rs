@@ -10,7 +10,7 @@ use super::types::*;
 use crate::bvh::Bvh;
 use crate::camera::Camera;
 use crate::features::Features;
-use crate::scene::{Effects, LightShape, Scene};
+use crate::scene::{Effects, LightShape, Sampler, Scene};
 
 /// A scene packed into the buffers the shader reads, in f32.
 ///
@@ -392,6 +392,12 @@ impl GpuScene {
             },
             chunk_shift: [0; 4],
             addresses: [[0; 4]; 3],
+            sampling: match effects.sampler {
+                Sampler::Stratified => SAMPLER_STRATIFIED,
+                Sampler::Sobol => SAMPLER_SOBOL,
+            },
+            _pad0: 0,
+            _pad: [0; 2],
         }
     }
 }

@@ -63,6 +63,12 @@ pub struct GpuFrame {
     /// high) words (`set_address`); only a shader built for address lists
     /// reads them.
     pub addresses: [[u32; 4]; 3],
+    /// `SAMPLER_SOBOL` or `SAMPLER_STRATIFIED`.
+    pub sampling: u32,
+    /// Padding to a 16-byte multiple.
+    pub _pad0: u32,
+    /// Padding to a 16-byte multiple.
+    pub _pad: [u32; 2],
 }
 
 impl GpuFrame {
@@ -74,6 +80,11 @@ impl GpuFrame {
             .copy_from_slice(&[address as u32, (address >> 32) as u32]);
     }
 }
+
+/// `GpuFrame::sampling` of `scene::Sampler::Stratified`.
+pub const SAMPLER_STRATIFIED: u32 = 0;
+/// `GpuFrame::sampling` of `scene::Sampler::Sobol`.
+pub const SAMPLER_SOBOL: u32 = 1;
 
 /// Per-dispatch constants (uniform, binding 1): the tile this dispatch
 /// renders, and how much of its work one pass may do.

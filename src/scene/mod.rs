@@ -17,7 +17,7 @@ mod write;
 pub use diagnostic::{Diagnostic, ParseError};
 pub use model::*;
 pub use obj::{write_obj, ObjWritten};
-pub use settings::{Effects, Settings};
+pub use settings::{Effects, Sampler, Settings};
 pub use space::SpaceMap;
 pub use windows::{parse_reader, parse_scene, read_scene};
 pub use write::to_classic_text;

@@ -10,6 +10,7 @@ use super::model::{
     Bounds, CameraSpec, Effects, Light, LightShape, Material, MeshInfo, Sphere, Triangle, Vertex,
 };
 use super::parse::{PResult, Parser, Token};
+use super::settings::Sampler;
 
 /// A `mesh` block's placement step.
 #[derive(Clone, Copy, Debug)]
@@ -352,6 +353,16 @@ impl<'a> Parser<'a> {
                 return Err(self.expected(&t, "a shutter between 0 (no blur) and 1"));
             }
             self.state.scene.settings.shutter = Some(v);
+        } else if tok.is("sampler:") {
+            let what = "a sampler: `sobol` or `stratified`";
+            let name = self.require_with(|| what.to_string())?;
+            let sampler = std::str::from_utf8(name.text)
+                .ok()
+                .and_then(Sampler::from_name);
+            match sampler {
+                Some(v) => self.state.scene.settings.sampler = Some(v),
+                None => return Err(self.expected(&name, what)),
+            }
         } else if tok.is("fps:") {
             let (v, t) = self.number("frames per second")?;
             if v <= 0.0 {

@@ -13,6 +13,7 @@
 //!
 //! ```text
 //! reflect: D   spp: N   shadow_samples: M   shutter: S   seed: K   fps: F
+//! sampler: sobol | stratified
 //!              (settings, anywhere between objects; not counted as objects)
 //! light ... col: r g b  [rad: r | edge_u: x y z edge_v: x y z]  [vel: x y z]
 //! sphere ... shi: s  [vel: x y z]
@@ -361,7 +362,7 @@ impl<'a> Parser<'a> {
             return Err(self.expected(
                 &tok,
                 "`sphere`, `triangle`, `light`, `mesh`, `camera` or a setting (`reflect:`, \
-                 `spp:`, `shadow_samples:`, `shutter:`, `seed:`, `fps:`)",
+                 `spp:`, `shadow_samples:`, `shutter:`, `seed:`, `fps:`, `sampler:`)",
             ));
         }
         Ok(true)

@@ -17,6 +17,8 @@ pub struct Settings {
     pub seed: Option<u32>,
     /// Frames per second of `--frames` animations.
     pub fps: Option<f64>,
+    /// How the random dimensions are sampled.
+    pub sampler: Option<Sampler>,
 }
 
 impl Settings {
@@ -29,6 +31,7 @@ impl Settings {
             shutter: self.shutter.or(base.shutter),
             seed: self.seed.or(base.seed),
             fps: self.fps.or(base.fps),
+            sampler: self.sampler.or(base.sampler),
         }
     }
 }
@@ -48,6 +51,8 @@ pub struct Effects {
     pub seed: u32,
     /// Frames per second of an animation (the shutter's time base).
     pub fps: f64,
+    /// How the pixel position, the time and area lights' points are drawn.
+    pub sampler: Sampler,
 }
 
 impl Default for Effects {
@@ -78,6 +83,7 @@ impl Effects {
             shutter: s.shutter.unwrap_or(0.0),
             seed: s.seed.unwrap_or(0),
             fps: s.fps.unwrap_or(Self::DEFAULT_FPS),
+            sampler: s.sampler.unwrap_or_default(),
         }
     }
 
@@ -89,5 +95,50 @@ impl Effects {
     /// Scene time of frame `index`, in seconds.
     pub fn frame_time(&self, index: u32) -> f64 {
         f64::from(index) / self.fps
+    }
+}
+
+/// How a pixel's samples draw their random dimensions: the position in the
+/// pixel, the time in the shutter, and each area light's point (per bounce).
+/// Both are unbiased and give the same image on every device for a seed;
+/// they differ in how evenly a pixel's samples cover each dimension
+/// (docs/effects.md, "Samplers").
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum Sampler {
+    /// Owen-scrambled Sobol points (Burley 2020), a new randomisation per
+    /// pixel and dimension: every power-of-two prefix of a pixel's samples
+    /// is stratified in each 2D dimension at once, at every scale.
+    #[default]
+    Sobol,
+    /// A jittered grid per dimension (`cols x rows`, visited from a random
+    /// cell) and a uniform random time: glint's sampler before `sobol`, its
+    /// images bit for bit.
+    Stratified,
+}
+
+impl Sampler {
+    /// Every sampler, the default first.
+    pub const ALL: [Sampler; 2] = [Sampler::Sobol, Sampler::Stratified];
+
+    /// What scene files, flags and reports call it.
+    pub fn name(self) -> &'static str {
+        match self {
+            Sampler::Sobol => "sobol",
+            Sampler::Stratified => "stratified",
+        }
+    }
+
+    /// The sampler called `name` (in any case, as the scene format's
+    /// words); None for any other name.
+    pub fn from_name(name: &str) -> Option<Sampler> {
+        Sampler::ALL
+            .into_iter()
+            .find(|s| s.name().eq_ignore_ascii_case(name))
+    }
+}
+
+impl std::fmt::Display for Sampler {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
     }
 }

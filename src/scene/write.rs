@@ -60,6 +60,9 @@ pub fn to_classic_text(scene: &Scene) -> String {
             let _ = writeln!(out, "{name}: {}", num(v));
         }
     }
+    if let Some(sampler) = st.sampler {
+        let _ = writeln!(out, "sampler: {sampler}");
+    }
     if let Some(c) = &scene.camera {
         let _ = writeln!(
             out,

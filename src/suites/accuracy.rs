@@ -10,7 +10,7 @@ use crate::features::Features;
 use crate::images::compare::flip_mean;
 use crate::images::framebuffer::Framebuffer;
 use crate::methods::Methods;
-use crate::scene::{Effects, Scene, Settings};
+use crate::scene::{Effects, Sampler, Scene, Settings};
 use crate::suites::plot::Plot;
 
 /// Where a point renders.
@@ -66,6 +66,39 @@ impl Point {
             shutter: Some(self.effects.shutter),
             seed: Some(self.effects.seed),
             fps: Some(self.effects.fps),
+            sampler: Some(self.effects.sampler),
+        }
+    }
+}
+
+/// The points of `plan` that a sampler changes: the scene's own setting,
+/// and the spp and shadow-sample sweeps.
+fn sampled(out: &mut Vec<Point>, features: &Features, effects: &Effects, target: Target) {
+    let point = |knob: &'static str, value: String, effects: Effects| Point {
+        knob,
+        value,
+        target,
+        methods: Methods::Robust,
+        effects,
+    };
+    out.push(point("scene", "scene".into(), *effects));
+    if features.multisample || features.motion_blur {
+        let top = (effects.spp * 4).clamp(16, Effects::MAX_SPP);
+        for spp in doublings(top) {
+            out.push(point("spp", spp.to_string(), Effects { spp, ..*effects }));
+        }
+    }
+    if features.area_lights {
+        let top = (effects.shadow_samples * 4).clamp(16, Effects::MAX_SHADOW_SAMPLES);
+        for shadow_samples in doublings(top) {
+            out.push(point(
+                "shadow_samples",
+                shadow_samples.to_string(),
+                Effects {
+                    shadow_samples,
+                    ..*effects
+                },
+            ));
         }
     }
 }
@@ -83,11 +116,37 @@ fn doublings(top: u32) -> Vec<u32> {
 /// own setting on each; spp when the scene samples pixels or time, shadow
 /// samples when it has area lights, reflection depth when it reflects, each
 /// from 1 (0 for reflection) to 4x the scene's value (at least 16); the CPU
-/// in f64 as well; the naive methods.
-pub fn plan(scene: &Scene, effects: &Effects, targets: &[Target]) -> Vec<Point> {
+/// in f64 as well; the naive methods. The scene's setting and the sample
+/// sweeps are made with each of `samplers` when the scene samples anything
+/// (the rest with the first); a scene that samples nothing is the same
+/// image with any sampler, and is made with the first.
+pub fn plan(
+    scene: &Scene,
+    effects: &Effects,
+    targets: &[Target],
+    samplers: &[Sampler],
+) -> Vec<Point> {
     let features = Features::of(scene, effects);
+    let samples = features.multisample || features.motion_blur || features.area_lights;
+    let first = samplers.first().copied().unwrap_or(effects.sampler);
+    let samplers: Vec<Sampler> = if samples {
+        samplers.to_vec()
+    } else {
+        vec![first]
+    };
     let mut out = Vec::new();
     for &target in targets {
+        for &sampler in &samplers {
+            let effects = &Effects {
+                sampler,
+                ..*effects
+            };
+            sampled(&mut out, &features, effects, target);
+        }
+        let effects = &Effects {
+            sampler: first,
+            ..*effects
+        };
         let point = |knob: &'static str, value: String, effects: Effects| Point {
             knob,
             value,
@@ -95,26 +154,6 @@ pub fn plan(scene: &Scene, effects: &Effects, targets: &[Target]) -> Vec<Point> 
             methods: Methods::Robust,
             effects,
         };
-        out.push(point("scene", "scene".into(), *effects));
-        if features.multisample || features.motion_blur {
-            let top = (effects.spp * 4).clamp(16, Effects::MAX_SPP);
-            for spp in doublings(top) {
-                out.push(point("spp", spp.to_string(), Effects { spp, ..*effects }));
-            }
-        }
-        if features.area_lights {
-            let top = (effects.shadow_samples * 4).clamp(16, Effects::MAX_SHADOW_SAMPLES);
-            for shadow_samples in doublings(top) {
-                out.push(point(
-                    "shadow_samples",
-                    shadow_samples.to_string(),
-                    Effects {
-                        shadow_samples,
-                        ..*effects
-                    },
-                ));
-            }
-        }
         if features.reflection {
             for reflect_depth in 0..=effects.reflect_depth {
                 out.push(point(
@@ -212,7 +251,7 @@ pub struct Measured {
 }
 
 /// The first line of `csv`'s output.
-pub const CSV_HEADER: &str = "knob,value,backend,precision,methods,spp,shadow_samples,reflect,time_ms,dispatch_ms,rmse,relmse,psnr,flip,p99,nan";
+pub const CSV_HEADER: &str = "knob,value,backend,precision,methods,sampler,spp,shadow_samples,reflect,time_ms,dispatch_ms,rmse,relmse,psnr,flip,p99,nan";
 
 /// The rows as CSV, under `CSV_HEADER`.
 pub fn csv(rows: &[Measured]) -> String {
@@ -222,12 +261,13 @@ pub fn csv(rows: &[Measured]) -> String {
         let e = &m.errors;
         let _ = writeln!(
             s,
-            "{},{},{},{},{},{},{},{},{:.3},{},{:.6e},{:.6e},{:.3},{:.6},{:.6},{}",
+            "{},{},{},{},{},{},{},{},{},{:.3},{},{:.6e},{:.6e},{:.3},{:.6},{:.6},{}",
             p.knob,
             p.value,
             p.target.backend(),
             p.target.precision(),
             p.methods,
+            p.effects.sampler,
             p.effects.spp,
             p.effects.shadow_samples,
             p.effects.reflect_depth,
@@ -288,7 +328,78 @@ fn label(m: &Measured) -> String {
     if p.knob == "scene" {
         s = "scene's settings".into();
     }
-    s
+    format!("{s}, {}", p.effects.sampler)
+}
+
+/// Each sampler against `stratified` at the scene's own settings, per
+/// backend: the ratio of their mean squared errors and of their times.
+pub fn sampler_ratios(rows: &[Measured]) -> Vec<SamplerRatio> {
+    let scene_point = |backend: &str, sampler: Sampler| {
+        rows.iter().find(|m| {
+            m.point.knob == "scene"
+                && m.point.target.backend() == backend
+                && m.point.effects.sampler == sampler
+        })
+    };
+    let mut out = Vec::new();
+    for backend in ["gpu", "cpu"] {
+        let Some(base) = scene_point(backend, Sampler::Stratified) else {
+            continue;
+        };
+        for sampler in Sampler::ALL
+            .into_iter()
+            .filter(|&s| s != Sampler::Stratified)
+        {
+            if let Some(m) = scene_point(backend, sampler) {
+                out.push(SamplerRatio {
+                    backend,
+                    sampler,
+                    mse: m.errors.rmse.powi(2),
+                    stratified_mse: base.errors.rmse.powi(2),
+                    time_ratio: m.time.as_secs_f64() / base.time.as_secs_f64().max(1e-9),
+                });
+            }
+        }
+    }
+    out
+}
+
+/// One line of `sampler_ratios`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct SamplerRatio {
+    /// "gpu" or "cpu".
+    pub backend: &'static str,
+    /// The sampler compared.
+    pub sampler: Sampler,
+    /// Its mean squared error at the scene's settings.
+    pub mse: f64,
+    /// `stratified`'s at the same settings.
+    pub stratified_mse: f64,
+    /// Its time over `stratified`'s.
+    pub time_ratio: f64,
+}
+
+fn samplers_section(s: &mut String, rows: &[Measured]) {
+    let ratios = sampler_ratios(rows);
+    if ratios.is_empty() {
+        return;
+    }
+    let _ = write!(
+        s,
+        "\n## Samplers\n\nAt the scene's own settings, against `stratified`: the mean squared error (MSE) and the time of one render.\n\n| backend | sampler | MSE | stratified MSE | stratified / sampler MSE | time / stratified's |\n|---|---|---:|---:|---:|---:|\n"
+    );
+    for r in ratios {
+        let _ = writeln!(
+            s,
+            "| {} | {} | {:.3e} | {:.3e} | {:.2} | {:.2} |",
+            r.backend,
+            r.sampler,
+            r.mse,
+            r.stratified_mse,
+            r.stratified_mse / r.mse.max(f64::MIN_POSITIVE),
+            r.time_ratio
+        );
+    }
 }
 
 /// The report: a table per knob (equal samples: value by backend), the
@@ -305,17 +416,18 @@ pub fn markdown(rows: &[Measured], header: &str, target: f64) -> String {
     for knob in knobs {
         let _ = write!(
             s,
-            "\n## {knob}\n\n| value | backend | precision | methods | time (ms) | dispatch (ms) | RMSE | relMSE | PSNR (dB) | FLIP | p99 | NaN |\n|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n"
+            "\n## {knob}\n\n| value | backend | precision | methods | sampler | time (ms) | dispatch (ms) | RMSE | relMSE | PSNR (dB) | FLIP | p99 | NaN |\n|---|---|---|---|---|---:|---:|---:|---:|---:|---:|---:|---:|\n"
         );
         for m in rows.iter().filter(|m| m.point.knob == knob) {
             let e = &m.errors;
             let _ = writeln!(
                 s,
-                "| {} | {} | {} | {} | {:.1} | {} | {:.5} | {:.2e} | {:.1} | {:.4} | {:.4} | {} |",
+                "| {} | {} | {} | {} | {} | {:.1} | {} | {:.5} | {:.2e} | {:.1} | {:.4} | {:.4} | {} |",
                 m.point.value,
                 m.point.target.backend(),
                 m.point.target.precision(),
                 m.point.methods,
+                m.point.effects.sampler,
                 ms(m.time),
                 m.dispatch.map_or("-".into(), |d| format!("{:.1}", ms(d))),
                 e.rmse,
@@ -327,6 +439,7 @@ pub fn markdown(rows: &[Measured], header: &str, target: f64) -> String {
             );
         }
     }
+    samplers_section(&mut s, rows);
     let _ = write!(
         s,
         "\n## Equal time\n\nPer backend, the settings (robust methods) no other beats in both time and RMSE, fastest first: at a given time, the best error to be had.\n"
@@ -381,7 +494,12 @@ pub fn markdown(rows: &[Measured], header: &str, target: f64) -> String {
 pub fn plot(rows: &[Measured], title: &str) -> Plot {
     let mut series: Vec<(String, Vec<[f64; 2]>)> = Vec::new();
     for m in rows.iter().filter(|m| m.errors.rmse > 0.0) {
-        let name = format!("{} ({})", m.point.knob, m.point.target.backend());
+        let name = format!(
+            "{} ({}, {})",
+            m.point.knob,
+            m.point.target.backend(),
+            m.point.effects.sampler
+        );
         let point = [ms(m.time).max(1e-3), m.errors.rmse];
         match series.iter_mut().find(|(n, _)| *n == name) {
             Some((_, v)) => v.push(point),
@@ -439,25 +557,34 @@ mod tests {
         let text = "2\namb: 0 0 0\nspp: 4\nsphere pos: 0 0 -3 rad: 1 dif: 1 1 1 spe: 0 0 0 shi: 1\nlight pos: 0 2 0 col: 1 1 1\n";
         let scene = crate::scene::parse_scene(text.as_bytes(), "t.scene").expect("parses");
         let effects = Effects::resolve(&scene.settings);
-        let points = plan(&scene, &effects, &[Target::Cpu(Precision::F32)]);
-        let knobs: Vec<(&str, &str)> = points.iter().map(|p| (p.knob, p.value.as_str())).collect();
-        // spp 1..16 (4x the scene's 4, at least 16); no area lights, no
-        // reflection (ks is 0).
-        assert_eq!(
-            knobs,
-            [
-                ("scene", "scene"),
-                ("spp", "1"),
-                ("spp", "2"),
-                ("spp", "4"),
-                ("spp", "8"),
-                ("spp", "16"),
-                ("methods", "naive"),
-                ("precision", "f64")
-            ]
-        );
+        let both = [Sampler::Sobol, Sampler::Stratified];
+        let points = plan(&scene, &effects, &[Target::Cpu(Precision::F32)], &both);
+        let knobs: Vec<(&str, &str, Sampler)> = points
+            .iter()
+            .map(|p| (p.knob, p.value.as_str(), p.effects.sampler))
+            .collect();
+        // spp 1..16 (4x the scene's 4, at least 16) with each sampler; no
+        // area lights, no reflection (ks is 0); the rest with the first.
+        let mut expected = Vec::new();
+        for sampler in both {
+            expected.push(("scene", "scene", sampler));
+            for spp in ["1", "2", "4", "8", "16"] {
+                expected.push(("spp", spp, sampler));
+            }
+        }
+        expected.push(("methods", "naive", Sampler::Sobol));
+        expected.push(("precision", "f64", Sampler::Sobol));
+        assert_eq!(knobs, expected);
         assert_eq!(points[3].effects.spp, 4);
-        assert_eq!(points[7].target, Target::Cpu(Precision::F64));
+        assert_eq!(points[13].target, Target::Cpu(Precision::F64));
+
+        // Nothing sampled: one sampler is the same image as the other.
+        let plain = text.replace("spp: 4\n", "");
+        let scene = crate::scene::parse_scene(plain.as_bytes(), "t.scene").expect("parses");
+        let effects = Effects::resolve(&scene.settings);
+        let points = plan(&scene, &effects, &[Target::Cpu(Precision::F32)], &both);
+        assert!(points.iter().all(|p| p.effects.sampler == Sampler::Sobol));
+        assert_eq!(points.len(), 3, "scene, naive, f64");
     }
 
     #[test]

@@ -8,7 +8,7 @@ use glint::cpu::Precision;
 use glint::images::framebuffer::Framebuffer;
 use glint::methods::Methods;
 use glint::render::{Backend, RenderOptions, Renderer};
-use glint::scene::Scene;
+use glint::scene::{Sampler, Scene};
 use glint::suites::accuracy::{self, Measured, Target};
 use glint::timing::GPU_TIME_NS;
 
@@ -62,7 +62,12 @@ pub(super) fn run(
             rayon::current_num_threads()
         ));
     }
-    let points = accuracy::plan(scene, &effects, &targets);
+    // Every sampler unless one was named: the comparison is the point.
+    let samplers = match args.effects.sampler {
+        Some(sampler) => vec![sampler],
+        None => Sampler::ALL.to_vec(),
+    };
+    let points = accuracy::plan(scene, &effects, &targets, &samplers);
     let budget = args.budget.map(Duration::from_secs_f64);
     let mut rows: Vec<Measured> = Vec::new();
     // Whether every GPU point was timed by the device (None: no GPU point).
@@ -95,6 +100,10 @@ pub(super) fn run(
                         Target::Gpu => base.device.clone(),
                         Target::Cpu(_) => None,
                     },
+                    // Each point's settings are whole (`Point::settings`);
+                    // the command line's overrides are in them already and
+                    // must not override the sweep's values.
+                    settings: Default::default(),
                     ..base.clone()
                 };
                 e.insert(Renderer::new(&options)?)

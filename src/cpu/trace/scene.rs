@@ -9,7 +9,7 @@ use crate::cpu::real::Real;
 use crate::features::Features;
 use crate::layout::{LIGHT_POINT, LIGHT_RECT, LIGHT_SPHERE, SPHERE_BIT};
 use crate::methods::Methods;
-use crate::scene::{Effects, LightShape, Scene};
+use crate::scene::{Effects, LightShape, Sampler, Scene};
 
 /// `Hit::prim` of a ray that hit nothing.
 pub const NO_HIT: u32 = u32::MAX;
@@ -111,6 +111,8 @@ pub struct CpuScene<'a, R: Real> {
     pub motion_blur: bool,
     /// Seed of the per-pixel sample hash.
     pub seed: u32,
+    /// How the random dimensions are drawn (the shader's `frame.sampling`).
+    pub sampler: Sampler,
     /// Samples per pixel.
     pub spp: u32,
     /// Shadow samples per area light.
@@ -275,6 +277,7 @@ impl<'a, R: Real> CpuScene<'a, R> {
             methods: options.methods,
             motion_blur,
             seed: effects.seed,
+            sampler: effects.sampler,
             spp: effects.spp,
             shadow_samples: effects.shadow_samples,
             reflect_depth: effects.reflect_depth,

@@ -4,12 +4,14 @@
 
 use crate::cpu::real::Real;
 use crate::cpu::sample::{
-    rng, stratified_2d, unit_float, ROTATION, STREAM_LIGHT, STREAM_PIXEL, STREAM_TIME,
+    area_uv, rng, sobol_1d, sobol_2d, sobol_key, stratified_2d, unit_float, ROTATION, STREAM_LIGHT,
+    STREAM_PIXEL, STREAM_TIME,
 };
 use crate::layout::{
     FLAG_NONFINITE_COLOR, FLAG_NONFINITE_SURFACE, LIGHT_POINT, LIGHT_RECT, SPHERE_BIT,
 };
 use crate::methods::Methods;
+use crate::scene::Sampler;
 
 use super::hit::*;
 use super::scene::*;
@@ -183,8 +185,14 @@ fn basis_v<R: Real>(w: R::V3) -> R::V3 {
 
 /// The point of `light` that sample `uv` (in [0,1)²) picks as seen from `p`:
 /// rectangle lights by area, sphere lights uniformly over the disc they show
-/// facing `p`.
-pub fn light_sample_point<R: Real>(light: &Light<R>, p: R::V3, uv: [R; 2]) -> R::V3 {
+/// facing `p` (polar for `Stratified`, concentric for `Sobol`; the shader's
+/// `light_sample_point`).
+pub fn light_sample_point<R: Real>(
+    sampler: Sampler,
+    light: &Light<R>,
+    p: R::V3,
+    uv: [R; 2],
+) -> R::V3 {
     if light.kind == LIGHT_RECT {
         return light.position
             + light.edge_u * (uv[0] - R::HALF)
@@ -192,9 +200,29 @@ pub fn light_sample_point<R: Real>(light: &Light<R>, p: R::V3, uv: [R; 2]) -> R:
     }
     let up = R::v3(R::ZERO, R::ZERO, R::ONE);
     let w = safe_normalize::<R>(light.position - p, up);
+    if sampler == Sampler::Sobol {
+        let [dx, dy] = concentric_disc(uv).map(|d| light.radius * d);
+        return light.position + basis_u::<R>(w) * dx + basis_v::<R>(w) * dy;
+    }
     let r = light.radius * uv[0].sqrt();
     let phi = R::TWO * R::PI * uv[1];
     light.position + basis_u::<R>(w) * (r * phi.cos()) + basis_v::<R>(w) * (r * phi.sin())
+}
+
+/// `uv` in [0,1)² onto the unit disc, uniformly by area (Shirley and Chiu's
+/// concentric map; the shader's `concentric_disc`).
+pub fn concentric_disc<R: Real>(uv: [R; 2]) -> [R; 2] {
+    let a = uv.map(|u| R::TWO * u - R::ONE);
+    if a[0] == R::ZERO && a[1] == R::ZERO {
+        return [R::ZERO, R::ZERO];
+    }
+    let quarter = R::from_f64(0.25) * R::PI;
+    let (r, phi) = if a[0].abs() > a[1].abs() {
+        (a[0], quarter * (a[1] / a[0]))
+    } else {
+        (a[1], R::HALF * R::PI - quarter * (a[0] / a[1]))
+    };
+    [r * phi.cos(), r * phi.sin()]
 }
 
 /// The share of area `light` at `sp`: the mean of its shadow samples, each
@@ -208,8 +236,6 @@ pub fn area_term<R: Real>(
     key: &SampleKey<R>,
 ) -> LightTerm<R> {
     let n = scene.shadow_samples.max(1);
-    let draw = |index| rng(scene.seed, key.pixel, key.sample, stream, index);
-    let rotation = draw(ROTATION);
     let color = light.color * (R::ONE / R::from_u32(n));
     let zero = R::v3(R::ZERO, R::ZERO, R::ZERO);
     let no_hit = Hit {
@@ -228,9 +254,16 @@ pub fn area_term<R: Real>(
     };
     let mut blocked = 0;
     for m in 0..n {
-        let jitter = [unit_float(draw(2 * m)), unit_float(draw(2 * m + 1))];
-        let uv = stratified_2d(m, n, rotation, jitter);
-        let target = light_sample_point(light, sp.p, uv);
+        let uv = area_uv(
+            scene.sampler,
+            scene.seed,
+            key.pixel,
+            key.sample,
+            stream,
+            m,
+            n,
+        );
+        let target = light_sample_point(scene.sampler, light, sp.p, uv);
         let term = point_term(scene, sp, view, target, color, key.time, &[]);
         total.contribution = total.contribution + term.contribution;
         total.origin = term.origin;
@@ -406,7 +439,10 @@ pub fn sample_color<R: Real>(scene: &CpuScene<R>, x: u32, y: u32, s: u32, n: u32
     let draw = |sample, stream, index| rng(scene.seed, pixel, sample, stream, index);
     let mut offset = [R::HALF, R::HALF];
     let mut time = R::ZERO;
-    if n > 1 {
+    let sobol = scene.sampler == Sampler::Sobol;
+    if n > 1 && sobol {
+        offset = sobol_2d(sobol_key(scene.seed, pixel, STREAM_PIXEL), s);
+    } else if n > 1 {
         let rotation = draw(ROTATION, STREAM_PIXEL, ROTATION);
         let jitter = [
             unit_float(draw(s, STREAM_PIXEL, 0)),
@@ -414,7 +450,9 @@ pub fn sample_color<R: Real>(scene: &CpuScene<R>, x: u32, y: u32, s: u32, n: u32
         ];
         offset = stratified_2d(s, n, rotation, jitter);
     }
-    if scene.motion_blur {
+    if scene.motion_blur && sobol {
+        time = scene.shutter * sobol_1d(sobol_key(scene.seed, pixel, STREAM_TIME), s);
+    } else if scene.motion_blur {
         time = scene.shutter * unit_float(draw(s, STREAM_TIME, 0));
     }
     let key = SampleKey {
