@@ -42,6 +42,39 @@ enum BenchCommand {
     /// medians and the speed ratios (Embree time / glint time) as a
     /// markdown table.
     Embree(EmbreeArgs),
+    /// Each sampler's mean squared error against an f64 reference of the
+    /// same integral, and its render time, at the scenes' own sample
+    /// counts; the ratios against `stratified`, as a markdown table.
+    Samplers(SamplersArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct SamplersArgs {
+    /// Scene files; default: scenes/effects/ soft_shadows, antialias,
+    /// motion_blur and all_effects.
+    scenes: Vec<PathBuf>,
+    /// Renders per sampler and scene, each with its own seed.
+    #[arg(long, default_value_t = 8, value_parser = clap::value_parser!(u32).range(1..=10_000))]
+    seeds: u32,
+    /// CPU f64 renders averaged into each scene's reference.
+    #[arg(long, default_value_t = 64, value_parser = clap::value_parser!(u32).range(1..=1_000_000))]
+    reference_passes: u32,
+    #[arg(long, default_value_t = 160, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    width: u32,
+    #[arg(long, default_value_t = 120, value_parser = clap::value_parser!(u32).range(1..=16384))]
+    height: u32,
+    /// Where the measured renders run.
+    #[arg(long, value_enum, default_value = "cpu")]
+    backend: MeasuredOn,
+    /// Vulkan device by index or name (see `glint devices`).
+    #[arg(long)]
+    device: Option<String>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum MeasuredOn {
+    Cpu,
+    Gpu,
 }
 
 #[derive(Args, Debug)]
@@ -184,6 +217,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<ExitCode> {
         Some(BenchCommand::Hard(hard)) => run_hard(hard),
         Some(BenchCommand::Specialize(args)) => run_specialize(args),
         Some(BenchCommand::Embree(args)) => run_embree(args),
+        Some(BenchCommand::Samplers(args)) => run_samplers(args),
         None => run_scenes(args.scenes),
     }
 }
@@ -233,6 +267,29 @@ fn run_specialize(args: SpecializeArgs) -> anyhow::Result<ExitCode> {
     };
     let table = glint::suites::bench::run_specialize(&options, &mut |line| eprintln!("{line}"))?;
     println!("{table}");
+    Ok(ExitCode::SUCCESS)
+}
+
+fn run_samplers(args: SamplersArgs) -> anyhow::Result<ExitCode> {
+    let scenes = if args.scenes.is_empty() {
+        glint::suites::bench::sampler_scenes()
+    } else {
+        args.scenes
+    };
+    let options = glint::suites::bench::SamplersOptions {
+        scenes,
+        width: args.width,
+        height: args.height,
+        seeds: args.seeds,
+        reference_passes: args.reference_passes,
+        backend: match args.backend {
+            MeasuredOn::Cpu => glint::render::Backend::Cpu,
+            MeasuredOn::Gpu => glint::render::Backend::Gpu,
+        },
+        device: args.device.as_deref().map(DeviceSelector::parse),
+    };
+    let report = glint::suites::bench::run_samplers(&options, &mut |line| eprintln!("{line}"))?;
+    println!("{}", report.to_markdown());
     Ok(ExitCode::SUCCESS)
 }
 

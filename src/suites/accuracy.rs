@@ -11,7 +11,7 @@ use crate::images::compare::flip_mean;
 use crate::images::framebuffer::Framebuffer;
 use crate::methods::Methods;
 use crate::scene::{Effects, Sampler, Scene, Settings};
-use crate::suites::plot::Plot;
+use crate::suites::plot::LogLog;
 
 /// Where a point renders.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -490,8 +490,8 @@ pub fn markdown(rows: &[Measured], header: &str, target: f64) -> String {
 }
 
 /// A log-log plot of RMSE against time, one line per knob and backend
-/// (`Plot::to_svg`, `Plot::to_image`).
-pub fn plot(rows: &[Measured], title: &str) -> Plot {
+/// (`LogLog::to_svg`, `LogLog::to_image`).
+pub fn plot(rows: &[Measured], title: &str) -> LogLog {
     let mut series: Vec<(String, Vec<[f64; 2]>)> = Vec::new();
     for m in rows.iter().filter(|m| m.errors.rmse > 0.0) {
         let name = format!(
@@ -514,7 +514,7 @@ pub fn svg(rows: &[Measured], title: &str) -> String {
     plot(rows, title).to_svg()
 }
 
-/// `plot` rasterised at twice its size, text in the built-in bitmap font.
+/// `plot` drawn at twice its size (text in the embedded DejaVu Sans).
 pub fn png_image(rows: &[Measured], title: &str) -> image::RgbImage {
     plot(rows, title).to_image(2.0)
 }

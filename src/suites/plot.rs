@@ -1,464 +1,295 @@
-//! A small vector drawing (lines, dots, text) written as SVG, whose text
-//! the viewer's fonts draw, and rasterised here to a PNG-ready image, whose
-//! text comes from a built-in 8x8 bitmap font: one description, so the two
-//! files always show the same plot, and no system font or plotting program
-//! is needed.
+//! The reports' charts (`glint accuracy`, `glint bench --plot`): log-log
+//! lines of named series, drawn by `plotters` as SVG, or as a picture for a
+//! PNG, with DejaVu Sans embedded (`dejavu`) so that a PNG's text needs no
+//! font on the machine.
 
-use std::fmt::Write as _;
+use std::sync::Once;
 
-use image::{Rgb, RgbImage};
+use image::RgbImage;
+use plotters::backend::{BitMapBackend, SVGBackend};
+use plotters::coord::Shift;
+use plotters::prelude::*;
 
-/// Where text sits on its anchor point.
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub enum Anchor {
-    /// The text starts there.
-    Start,
-    /// The text is centred there.
-    Middle,
-    /// The text ends there.
-    End,
+/// The chart's size in SVG pixels; the PNG is drawn at a multiple of it.
+const SIZE: (u32, u32) = (760, 480);
+
+/// The series' colours (matplotlib's first eight, which stay apart in
+/// print and for the common colour-vision deficiencies' first pairs).
+const COLOURS: [RGBColor; 8] = [
+    RGBColor(0x1f, 0x77, 0xb4),
+    RGBColor(0xd6, 0x27, 0x28),
+    RGBColor(0x2c, 0xa0, 0x2c),
+    RGBColor(0x94, 0x67, 0xbd),
+    RGBColor(0xff, 0x7f, 0x0e),
+    RGBColor(0x8c, 0x56, 0x4b),
+    RGBColor(0xe3, 0x77, 0xc2),
+    RGBColor(0x17, 0xbe, 0xcf),
+];
+
+/// A log-log chart: one line through its points per named series (points
+/// not positive on both axes are left out), with a legend that shows each
+/// series' line and marker.
+#[derive(Clone, Debug, PartialEq)]
+pub struct LogLog {
+    /// Above the chart.
+    pub title: String,
+    /// Under the x axis.
+    pub x_label: String,
+    /// Beside the y axis.
+    pub y_label: String,
+    /// (name, points), drawn in order.
+    pub series: Vec<(String, Vec<[f64; 2]>)>,
 }
 
-#[derive(Clone, Debug)]
-enum Item {
-    Line {
-        points: Vec<[f64; 2]>,
-        colour: [u8; 3],
-        width: f64,
-    },
-    Dot {
-        at: [f64; 2],
-        radius: f64,
-        colour: [u8; 3],
-    },
-    Text {
-        at: [f64; 2],
-        text: String,
-        size: f64,
-        anchor: Anchor,
-        /// Read bottom to top (rotated -90 degrees about `at`).
-        vertical: bool,
-    },
-}
-
-/// A drawing in user units (SVG pixels), on white.
-#[derive(Clone, Debug)]
-pub struct Plot {
-    /// Width in user units.
-    pub width: f64,
-    /// Height in user units.
-    pub height: f64,
-    items: Vec<Item>,
-}
-
-/// `#rrggbb` as bytes; black for anything else.
-pub fn hex(colour: &str) -> [u8; 3] {
-    let v = u32::from_str_radix(colour.trim_start_matches('#'), 16).unwrap_or(0);
-    [(v >> 16) as u8, (v >> 8) as u8, v as u8]
-}
-
-fn escape(s: &str) -> String {
-    s.replace('&', "&amp;")
-        .replace('<', "&lt;")
-        .replace('>', "&gt;")
-        .replace('"', "&quot;")
-}
-
-/// Rows of a glyph in the bitmap font (bit 0 is the leftmost pixel); `?`
-/// for characters outside Basic Latin.
-fn glyph(c: char) -> [u8; 8] {
-    use font8x8::UnicodeFonts;
-    font8x8::BASIC_FONTS
-        .get(c)
-        .or_else(|| font8x8::BASIC_FONTS.get('?'))
-        .unwrap_or([0; 8])
-}
-
-impl Plot {
-    /// An empty drawing of this size.
-    pub fn new(width: f64, height: f64) -> Plot {
-        Plot {
-            width,
-            height,
-            items: Vec::new(),
-        }
-    }
-
-    /// A polyline (two points: a segment).
-    pub fn line(&mut self, points: &[[f64; 2]], colour: [u8; 3], width: f64) {
-        self.items.push(Item::Line {
-            points: points.to_vec(),
-            colour,
-            width,
-        });
-    }
-
-    /// A filled circle.
-    pub fn dot(&mut self, at: [f64; 2], radius: f64, colour: [u8; 3]) {
-        self.items.push(Item::Dot { at, radius, colour });
-    }
-
-    /// Black text whose baseline passes through `at`.
-    pub fn text(&mut self, at: [f64; 2], text: &str, size: f64, anchor: Anchor, vertical: bool) {
-        self.items.push(Item::Text {
-            at,
-            text: text.to_string(),
-            size,
-            anchor,
-            vertical,
-        });
-    }
-
-    /// The drawing as an SVG document.
-    pub fn to_svg(&self) -> String {
-        let (w, h) = (self.width, self.height);
-        let mut s = format!(
-            "<svg xmlns=\"http://www.w3.org/2000/svg\" width=\"{w}\" height=\"{h}\" font-family=\"sans-serif\">\n<rect width=\"{w}\" height=\"{h}\" fill=\"white\"/>\n"
-        );
-        let rgb = |c: [u8; 3]| format!("#{:02x}{:02x}{:02x}", c[0], c[1], c[2]);
-        for item in &self.items {
-            let _ = match item {
-                Item::Line {
-                    points,
-                    colour,
-                    width,
-                } => {
-                    let pts: Vec<String> = points
-                        .iter()
-                        .map(|p| format!("{:.1},{:.1}", p[0], p[1]))
-                        .collect();
-                    writeln!(
-                        s,
-                        "<polyline points=\"{}\" fill=\"none\" stroke=\"{}\" stroke-width=\"{width}\"/>",
-                        pts.join(" "),
-                        rgb(*colour)
-                    )
-                }
-                Item::Dot { at, radius, colour } => writeln!(
-                    s,
-                    "<circle cx=\"{:.1}\" cy=\"{:.1}\" r=\"{radius}\" fill=\"{}\"/>",
-                    at[0],
-                    at[1],
-                    rgb(*colour)
-                ),
-                Item::Text {
-                    at,
-                    text,
-                    size,
-                    anchor,
-                    vertical,
-                } => {
-                    let anchor = match anchor {
-                        Anchor::Start => "start",
-                        Anchor::Middle => "middle",
-                        Anchor::End => "end",
-                    };
-                    let rotate = if *vertical {
-                        format!(" transform=\"rotate(-90 {:.1} {:.1})\"", at[0], at[1])
-                    } else {
-                        String::new()
-                    };
-                    writeln!(
-                        s,
-                        "<text x=\"{:.1}\" y=\"{:.1}\" font-size=\"{size}\" text-anchor=\"{anchor}\"{rotate}>{}</text>",
-                        at[0],
-                        at[1],
-                        escape(text)
-                    )
-                }
-            };
-        }
-        s.push_str("</svg>\n");
-        s
-    }
-
-    /// The drawing rasterised at `scale` pixels per user unit, lines and
-    /// dots antialiased by their coverage of each pixel.
-    pub fn to_image(&self, scale: f64) -> RgbImage {
-        let (w, h) = (
-            (self.width * scale).round().max(1.0) as u32,
-            (self.height * scale).round().max(1.0) as u32,
-        );
-        let mut img = RgbImage::from_pixel(w, h, Rgb([255; 3]));
-        for item in &self.items {
-            match item {
-                Item::Line {
-                    points,
-                    colour,
-                    width,
-                } => {
-                    for pair in points.windows(2) {
-                        let a = pair[0].map(|v| v * scale);
-                        let b = pair[1].map(|v| v * scale);
-                        let half = (width * scale / 2.0).max(0.5);
-                        cover(&mut img, *colour, [a, b], half + 1.0, |p| {
-                            half + 0.5 - segment_distance(p, a, b)
-                        });
-                    }
-                }
-                Item::Dot { at, radius, colour } => {
-                    let c = at.map(|v| v * scale);
-                    let r = radius * scale;
-                    cover(&mut img, *colour, [c, c], r + 1.0, |p| {
-                        r + 0.5 - ((p[0] - c[0]).powi(2) + (p[1] - c[1]).powi(2)).sqrt()
-                    });
-                }
-                Item::Text {
-                    at,
-                    text,
-                    size,
-                    anchor,
-                    vertical,
-                } => draw_text(
-                    &mut img,
-                    at.map(|v| v * scale),
-                    text,
-                    size * scale,
-                    *anchor,
-                    *vertical,
-                ),
-            }
-        }
-        img
-    }
-}
-
-fn segment_distance(p: [f64; 2], a: [f64; 2], b: [f64; 2]) -> f64 {
-    let (dx, dy) = (b[0] - a[0], b[1] - a[1]);
-    let len2 = dx * dx + dy * dy;
-    let t = if len2 > 0.0 {
-        (((p[0] - a[0]) * dx + (p[1] - a[1]) * dy) / len2).clamp(0.0, 1.0)
-    } else {
-        0.0
-    };
-    let (qx, qy) = (a[0] + t * dx, a[1] + t * dy);
-    ((p[0] - qx).powi(2) + (p[1] - qy).powi(2)).sqrt()
-}
-
-/// Blends `colour` into every pixel near the segment `ends` (within
-/// `reach`) by `coverage(pixel centre)`, clamped to [0, 1].
-fn cover(
-    img: &mut RgbImage,
-    colour: [u8; 3],
-    ends: [[f64; 2]; 2],
-    reach: f64,
-    coverage: impl Fn([f64; 2]) -> f64,
-) {
-    let (w, h) = (f64::from(img.width()), f64::from(img.height()));
-    let x0 = (ends[0][0].min(ends[1][0]) - reach).floor().clamp(0.0, w) as u32;
-    let x1 = (ends[0][0].max(ends[1][0]) + reach).ceil().clamp(0.0, w) as u32;
-    let y0 = (ends[0][1].min(ends[1][1]) - reach).floor().clamp(0.0, h) as u32;
-    let y1 = (ends[0][1].max(ends[1][1]) + reach).ceil().clamp(0.0, h) as u32;
-    for y in y0..y1 {
-        for x in x0..x1 {
-            let a = coverage([f64::from(x) + 0.5, f64::from(y) + 0.5]).clamp(0.0, 1.0);
-            if a > 0.0 {
-                let px = img.get_pixel_mut(x, y);
-                for (v, &c) in px.0.iter_mut().zip(&colour) {
-                    *v = (f64::from(*v) * (1.0 - a) + f64::from(c) * a).round() as u8;
-                }
-            }
-        }
-    }
-}
-
-/// Text in the 8x8 font, each font pixel a square of about a tenth of
-/// `size` (so a capital is about 0.7 `size` tall, as in common fonts); the
-/// baseline is the glyph's seventh row.
-fn draw_text(
-    img: &mut RgbImage,
-    at: [f64; 2],
-    text: &str,
-    size: f64,
-    anchor: Anchor,
-    vertical: bool,
-) {
-    let p = (size / 10.0).round().max(1.0) as i64;
-    let n = text.chars().count() as i64;
-    let width = 8 * p * n;
-    let start = match anchor {
-        Anchor::Start => 0,
-        Anchor::Middle => -width / 2,
-        Anchor::End => -width,
-    };
-    let (ax, ay) = (at[0].round() as i64, at[1].round() as i64);
-    for (i, c) in text.chars().enumerate() {
-        for (row, bits) in glyph(c).iter().enumerate() {
-            for col in 0..8 {
-                if bits & (1 << col) == 0 {
-                    continue;
-                }
-                // Along the text (u) and down from the baseline (v).
-                let u = start + (i as i64 * 8 + col) * p;
-                let v = (row as i64 - 7) * p;
-                let (x, y) = if vertical {
-                    (ax + v, ay - u - p)
-                } else {
-                    (ax + u, ay + v)
-                };
-                for dy in 0..p {
-                    for dx in 0..p {
-                        let (px, py) = (x + dx, y + dy);
-                        if px >= 0
-                            && py >= 0
-                            && px < i64::from(img.width())
-                            && py < i64::from(img.height())
-                        {
-                            img.put_pixel(px as u32, py as u32, Rgb([0; 3]));
-                        }
-                    }
-                }
-            }
-        }
-    }
-}
-
-/// A log-log chart: one line with dots per named series of (x, y) points
-/// (positive; others are left out), decades on both axes, and a legend.
+/// A log-log chart of `series`; see `LogLog`.
 pub fn log_log(
     title: &str,
     x_label: &str,
     y_label: &str,
     series: &[(String, Vec<[f64; 2]>)],
-) -> Plot {
-    let (w, h) = (720.0, 480.0);
-    let (left, right, top, bottom) = (70.0, 230.0, 40.0, 50.0);
-    let logs: Vec<(&str, Vec<[f64; 2]>)> = series
-        .iter()
-        .map(|(name, points)| {
-            let pts = points
-                .iter()
-                .filter(|p| p[0] > 0.0 && p[1] > 0.0)
-                .map(|p| [p[0].log10(), p[1].log10()])
-                .collect();
-            (name.as_str(), pts)
-        })
-        .filter(|(_, pts): &(&str, Vec<[f64; 2]>)| !pts.is_empty())
-        .collect();
-    let span = |axis: usize| {
-        let all = logs
+) -> LogLog {
+    LogLog {
+        title: title.to_string(),
+        x_label: x_label.to_string(),
+        y_label: y_label.to_string(),
+        series: series
             .iter()
-            .flat_map(|(_, p)| p.iter().map(move |q| q[axis]));
-        let lo = all.clone().fold(f64::INFINITY, f64::min);
-        let hi = all.fold(f64::NEG_INFINITY, f64::max);
-        if lo.is_finite() {
-            (lo.floor(), hi.ceil().max(lo.floor() + 1.0))
-        } else {
-            (0.0, 1.0)
+            .map(|(name, points)| {
+                let kept = points
+                    .iter()
+                    .copied()
+                    .filter(|p| p[0] > 0.0 && p[1] > 0.0 && p[0].is_finite() && p[1].is_finite())
+                    .collect();
+                (name.clone(), kept)
+            })
+            .filter(|(_, points): &(String, Vec<[f64; 2]>)| !points.is_empty())
+            .collect(),
+    }
+}
+
+impl LogLog {
+    /// The chart as an SVG document.
+    pub fn to_svg(&self) -> String {
+        register_font();
+        let mut svg = String::new();
+        {
+            let root = SVGBackend::with_string(&mut svg, SIZE).into_drawing_area();
+            // Drawing into a string cannot fail but for a font that cannot
+            // lay out text, and the embedded one can.
+            self.draw(&root, 1.0).expect("drawing a chart into memory");
         }
-    };
-    let (x0, x1) = span(0);
-    let (y0, y1) = span(1);
-    let px = |x: f64| left + (x - x0) / (x1 - x0) * (w - left - right);
-    let py = |y: f64| h - bottom - (y - y0) / (y1 - y0) * (h - top - bottom);
-    let mut p = Plot::new(w, h);
-    p.text([left, 22.0], title, 14.0, Anchor::Start, false);
-    let grid = [0xdd; 3];
-    for d in (x0 as i32)..=(x1 as i32) {
-        let x = px(f64::from(d));
-        p.line(&[[x, top], [x, h - bottom]], grid, 1.0);
-        p.text(
-            [x, h - bottom + 16.0],
-            &format!("1e{d}"),
-            12.0,
-            Anchor::Middle,
-            false,
-        );
+        svg
     }
-    for d in (y0 as i32)..=(y1 as i32) {
-        let y = py(f64::from(d));
-        p.line(&[[left, y], [w - right, y]], grid, 1.0);
-        p.text(
-            [left - 6.0, y + 4.0],
-            &format!("1e{d}"),
-            12.0,
-            Anchor::End,
-            false,
+
+    /// The chart as a picture, `scale` pixels an SVG pixel.
+    pub fn to_image(&self, scale: f64) -> RgbImage {
+        register_font();
+        let (w, h) = (
+            (f64::from(SIZE.0) * scale).round().max(1.0) as u32,
+            (f64::from(SIZE.1) * scale).round().max(1.0) as u32,
         );
-    }
-    p.text(
-        [(left + w - right) / 2.0, h - 12.0],
-        x_label,
-        12.0,
-        Anchor::Middle,
-        false,
-    );
-    p.text(
-        [16.0, (top + h - bottom) / 2.0],
-        y_label,
-        12.0,
-        Anchor::Middle,
-        true,
-    );
-    let colours = [
-        "#1f77b4", "#d62728", "#2ca02c", "#9467bd", "#ff7f0e", "#8c564b", "#e377c2", "#17becf",
-    ];
-    for (i, (name, pts)) in logs.iter().enumerate() {
-        let colour = hex(colours[i % colours.len()]);
-        let coords: Vec<[f64; 2]> = pts.iter().map(|q| [px(q[0]), py(q[1])]).collect();
-        p.line(&coords, colour, 2.0);
-        for &c in &coords {
-            p.dot(c, 3.0, colour);
+        let mut pixels = vec![0u8; (w * h * 3) as usize];
+        {
+            let root = BitMapBackend::with_buffer(&mut pixels, (w, h)).into_drawing_area();
+            self.draw(&root, scale)
+                .expect("drawing a chart into memory");
         }
-        let ly = top + 10.0 + 18.0 * i as f64;
-        p.line(
-            &[[w - right + 10.0, ly], [w - right + 30.0, ly]],
-            colour,
-            2.0,
-        );
-        p.text(
-            [w - right + 36.0, ly + 4.0],
-            name,
-            12.0,
-            Anchor::Start,
-            false,
-        );
+        RgbImage::from_raw(w, h, pixels).expect("a buffer of w x h x 3 bytes")
     }
-    p
+
+    fn draw<B: DrawingBackend>(
+        &self,
+        root: &DrawingArea<B, Shift>,
+        scale: f64,
+    ) -> Result<(), DrawingAreaErrorKind<B::ErrorType>> {
+        let px = |v: f64| (v * scale).round() as i32;
+        root.fill(&WHITE)?;
+        let (x_range, y_range) = (self.range(0), self.range(1));
+        let mut chart = ChartBuilder::on(root)
+            .caption(&self.title, ("sans-serif", px(18.0)))
+            .margin(px(12.0))
+            .x_label_area_size(px(44.0))
+            .y_label_area_size(px(64.0))
+            .build_cartesian_2d(x_range.log_scale(), y_range.log_scale())?;
+        chart
+            .configure_mesh()
+            .x_desc(&self.x_label)
+            .y_desc(&self.y_label)
+            .label_style(("sans-serif", px(13.0)))
+            .axis_desc_style(("sans-serif", px(14.0)))
+            .x_label_formatter(&|v| number(*v))
+            .y_label_formatter(&|v| number(*v))
+            .light_line_style(RGBColor(0xee, 0xee, 0xee))
+            .draw()?;
+        let (marker, width) = (px(4.0).max(1) as u32, px(2.0).max(1) as u32);
+        // The legend's glyph: a line with the marker on it, in the space
+        // plotters leaves before each label (`legend_area_size`).
+        let glyph = px(26.0);
+        for (i, (name, points)) in self.series.iter().enumerate() {
+            let colour = COLOURS[i % COLOURS.len()];
+            let line = colour.stroke_width(width);
+            chart
+                .draw_series(LineSeries::new(points.iter().map(|p| (p[0], p[1])), line))?
+                .label(name.as_str())
+                .legend(move |(x, y)| {
+                    EmptyElement::at((x, y))
+                        + PathElement::new(vec![(0, 0), (glyph, 0)], line)
+                        + Shape::new(i, (glyph / 2, 0), marker, colour)
+                });
+            chart.draw_series(
+                points.iter().map(|p| {
+                    EmptyElement::at((p[0], p[1])) + Shape::new(i, (0, 0), marker, colour)
+                }),
+            )?;
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::UpperRight)
+            .legend_area_size(glyph + px(8.0))
+            .label_font(("sans-serif", px(13.0)))
+            .background_style(WHITE.mix(0.85))
+            .border_style(RGBColor(0x99, 0x99, 0x99))
+            .draw()?;
+        root.present()
+    }
+
+    /// The data's extent on `axis`, widened to whole decades so that the
+    /// axes show at least one labelled power of ten.
+    fn range(&self, axis: usize) -> std::ops::Range<f64> {
+        let values = self
+            .series
+            .iter()
+            .flat_map(|(_, p)| p.iter().map(|q| q[axis]));
+        let lo = values.clone().fold(f64::INFINITY, f64::min);
+        let hi = values.fold(f64::NEG_INFINITY, f64::max);
+        if !lo.is_finite() {
+            return 1.0..10.0;
+        }
+        let lo = 10f64.powf(lo.log10().floor());
+        let hi = 10f64.powf(hi.log10().ceil()).max(lo * 10.0);
+        lo..hi
+    }
+}
+
+/// An axis label: a power of ten as people write it (0.01, 1, 1000), or
+/// in exponent form where that is long (1e-5, 1e6).
+fn number(v: f64) -> String {
+    let e = v.abs().log10().round();
+    if (-3.0..=4.0).contains(&e) {
+        let digits = (-e).max(0.0) as usize;
+        format!("{v:.digits$}")
+    } else {
+        format!("{v:.0e}")
+    }
+}
+
+/// A series' marker, told apart by shape as well as colour: a disc, a
+/// square or a triangle, in turn.
+struct Shape;
+
+impl Shape {
+    #[allow(clippy::new_ret_no_self)]
+    fn new<DB: DrawingBackend>(
+        series: usize,
+        at: (i32, i32),
+        size: u32,
+        colour: RGBColor,
+    ) -> DynElement<'static, DB, (i32, i32)> {
+        let s = size as i32;
+        let style = colour.filled();
+        match series % 3 {
+            0 => Circle::new(at, size, style).into_dyn(),
+            1 => Rectangle::new([(at.0 - s, at.1 - s), (at.0 + s, at.1 + s)], style).into_dyn(),
+            _ => Polygon::new(
+                vec![
+                    (at.0, at.1 - s - 1),
+                    (at.0 - s - 1, at.1 + s),
+                    (at.0 + s + 1, at.1 + s),
+                ],
+                style,
+            )
+            .into_dyn(),
+        }
+    }
+}
+
+/// DejaVu Sans as plotters' "sans-serif", once per process.
+fn register_font() {
+    static ONCE: Once = Once::new();
+    ONCE.call_once(|| {
+        // The embedded font parses; a failure would leave the charts
+        // without text, never without their lines.
+        let _ = plotters::style::register_font(
+            "sans-serif",
+            FontStyle::Normal,
+            dejavu::sans::regular(),
+        );
+    });
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
 
-    /// The PNG shows what the SVG says: lines where they are, text in the
-    /// bitmap font where its anchor puts it, white elsewhere.
+    fn chart() -> LogLog {
+        log_log(
+            "errors",
+            "time (ms)",
+            "RMSE",
+            &[
+                ("spp (cpu, sobol)".into(), vec![[1.0, 0.1], [10.0, 0.01]]),
+                (
+                    "spp (cpu, stratified)".into(),
+                    vec![[2.0, 0.2], [20.0, 0.05]],
+                ),
+                ("nothing".into(), vec![[0.0, 1.0], [1.0, -1.0]]),
+            ],
+        )
+    }
+
     #[test]
-    fn raster_matches_the_description() {
-        let mut p = Plot::new(100.0, 50.0);
-        p.line(&[[10.0, 10.0], [90.0, 10.0]], [255, 0, 0], 2.0);
-        p.dot([50.0, 40.0], 3.0, [0, 0, 255]);
-        p.text([50.0, 30.0], "Hi", 10.0, Anchor::Middle, false);
-        let svg = p.to_svg();
-        assert!(
-            svg.contains("<polyline points=\"10.0,10.0 90.0,10.0\""),
-            "{svg}"
-        );
-        assert!(svg.contains("text-anchor=\"middle\">Hi</text>"), "{svg}");
-        let img = p.to_image(2.0);
-        assert_eq!((img.width(), img.height()), (200, 100));
-        assert_eq!(img.get_pixel(100, 20).0, [255, 0, 0], "on the line");
-        assert_eq!(img.get_pixel(100, 30).0, [255; 3], "off it");
-        assert_eq!(img.get_pixel(100, 80).0, [0, 0, 255], "the dot");
-        // "Hi" at 2 px a font pixel: 32 px wide, centred on x = 100, rows
-        // 46-59 (the baseline at y = 60 is the glyphs' seventh row).
-        let ink = |x0: u32, x1: u32| {
-            (x0..x1)
-                .flat_map(|x| (40..62).map(move |y| (x, y)))
-                .filter(|&(x, y)| img.get_pixel(x, y).0 == [0; 3])
-                .count()
-        };
-        assert!(
-            ink(84, 100) > 20 && ink(100, 116) > 10,
-            "both letters drawn"
-        );
-        assert_eq!(ink(0, 83) + ink(117, 200), 0, "nothing outside the text");
-        let mut v = Plot::new(40.0, 40.0);
-        v.text([20.0, 20.0], "ab", 10.0, Anchor::Middle, true);
-        let img = v.to_image(1.0);
-        let rows: Vec<u32> = (0..40)
-            .filter(|&y| (0..40).any(|x| img.get_pixel(x, y).0 == [0; 3]))
+    fn axis_numbers_read_as_written() {
+        let shown: Vec<String> = [1e-5, 0.001, 0.01, 1.0, 10.0, 1e4, 1e6]
+            .into_iter()
+            .map(number)
             .collect();
-        assert!(rows.len() > 10, "vertical text spans rows: {rows:?}");
+        assert_eq!(shown, ["1e-5", "0.001", "0.01", "1", "10", "10000", "1e6"]);
+    }
+
+    #[test]
+    fn points_off_a_log_axis_are_left_out() {
+        let c = chart();
+        let names: Vec<&str> = c.series.iter().map(|s| s.0.as_str()).collect();
+        assert_eq!(names, ["spp (cpu, sobol)", "spp (cpu, stratified)"]);
+        assert_eq!(c.range(0), 1.0..100.0);
+        assert_eq!(c.range(1), 0.01..1.0);
+    }
+
+    /// Both forms carry the title, the axes' names and every series in the
+    /// legend; the picture has each series' colour in it.
+    #[test]
+    fn svg_and_png_show_every_series() {
+        let c = chart();
+        let svg = c.to_svg();
+        for text in [
+            "errors",
+            "time (ms)",
+            "RMSE",
+            "spp (cpu, sobol)",
+            "spp (cpu, stratified)",
+        ] {
+            assert!(svg.contains(text), "{text} missing from the SVG");
+        }
+        let img = c.to_image(2.0);
+        assert_eq!((img.width(), img.height()), (2 * SIZE.0, 2 * SIZE.1));
+        for colour in &COLOURS[..2] {
+            let count = img
+                .pixels()
+                .filter(|p| p.0 == [colour.0, colour.1, colour.2])
+                .count();
+            assert!(count > 100, "{colour:?}: {count} pixels");
+        }
+        let dark = img.pixels().filter(|p| p.0.iter().all(|&c| c < 64)).count();
+        assert!(dark > 1000, "text and axes drawn: {dark} dark pixels");
     }
 }

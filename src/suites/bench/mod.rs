@@ -2,13 +2,15 @@
 //! (`scenes`, `glint bench`, `cargo bench`), the hard-case suite's counts
 //! and what the robust methods cost (`hard`, `glint bench hard`), the
 //! specialised shader against the generic one (`specialize`, `glint bench
-//! specialize`), and glint against an Embree renderer of the same spec
-//! (`embree`, `glint bench embree`). `glint accuracy` (src/accuracy.rs)
+//! specialize`), glint against an Embree renderer of the same spec
+//! (`embree`, `glint bench embree`), and what each sampler's error and time
+//! come to (`samplers`, `glint bench samplers`). `glint accuracy` (src/accuracy.rs)
 //! measures error against time.
 
 mod common;
 mod embree;
 mod hard;
+mod samplers;
 mod scenes;
 mod specialize;
 
@@ -18,5 +20,6 @@ pub use embree::{
     Mode,
 };
 pub use hard::{run_hard, HardOptions, HardReport};
+pub use samplers::{run_samplers, sampler_scenes, SamplerRow, SamplersOptions, SamplersReport};
 pub use scenes::{run, BenchOptions, BenchReport, SceneResult};
 pub use specialize::{run_specialize, specialize_scenes, SpecializeOptions};

@@ -230,7 +230,7 @@ fn ms(s: Option<Stat>) -> f64 {
 impl BenchReport {
     /// Render time against primitive count, log-log, one line per backend
     /// (`glint bench --plot`): how each one's cost grows with the scene.
-    pub fn plot(&self) -> crate::suites::plot::Plot {
+    pub fn plot(&self) -> crate::suites::plot::LogLog {
         type Column = fn(&SceneResult) -> Option<Stat>;
         let columns: [(&str, Column); 3] = [
             ("GPU", |s| s.gpu),
