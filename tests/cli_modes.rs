@@ -123,7 +123,7 @@ fn bench_plots_render_time_against_primitives() {
     let o = glint(&args, d.path());
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     let png = image::open(d.path().join("t.png")).expect("a PNG");
-    assert_eq!((png.width(), png.height()), (1440, 960));
+    assert_eq!((png.width(), png.height()), (1520, 960));
     // Refused before any work: a type glint does not draw.
     args[5] = "t.pdf";
     let o = glint(&args, d.path());
@@ -346,20 +346,24 @@ fn accuracy_sweeps_and_caches_its_reference() {
         header.starts_with("knob,value,backend,precision,"),
         "{header}"
     );
-    for column in ["time_ms", "rmse", "flip"] {
+    for column in ["sampler", "time_ms", "rmse", "flip"] {
         assert!(header.split(',').any(|c| c == column), "{header}");
     }
     let rows: Vec<&str> = lines.collect();
-    // scene, shadow samples 1..128, naive, f64.
-    assert_eq!(rows.len(), 11, "{csv}");
-    assert!(
-        rows.iter()
-            .any(|r| r.starts_with("shadow_samples,1,cpu,f32,")),
-        "{csv}"
-    );
+    // scene and shadow samples 1..128 with each sampler, naive, f64.
+    assert_eq!(rows.len(), 20, "{csv}");
+    for sampler in ["sobol", "stratified"] {
+        assert!(
+            rows.iter()
+                .any(|r| r.starts_with(&format!("shadow_samples,1,cpu,f32,robust,{sampler},"))),
+            "{csv}"
+        );
+    }
     let md = std::fs::read_to_string(d.path().join("acc/accuracy.md")).expect("md");
     assert!(
-        md.contains("## shadow_samples") && md.contains("## Equal time"),
+        md.contains("## shadow_samples")
+            && md.contains("## Equal time")
+            && md.contains("## Samplers"),
         "{md}"
     );
     let svg = std::fs::read_to_string(d.path().join("acc/accuracy.svg")).expect("svg");
@@ -371,7 +375,7 @@ fn accuracy_sweeps_and_caches_its_reference() {
     let png = image::open(d.path().join("acc/accuracy.png"))
         .expect("png")
         .to_rgb8();
-    assert_eq!((png.width(), png.height()), (1440, 960));
+    assert_eq!((png.width(), png.height()), (1520, 960));
     let coloured = png
         .pixels()
         .filter(|p| p.0.iter().max() != p.0.iter().min())
@@ -391,6 +395,20 @@ fn accuracy_sweeps_and_caches_its_reference() {
         stderr(&again).contains("(cached)") && !stderr(&again).contains("rendering the reference"),
         "{}",
         stderr(&again)
+    );
+    // --sampler sweeps that one alone.
+    let one: Vec<&str> = args
+        .iter()
+        .copied()
+        .chain(["--sampler", "stratified"])
+        .collect();
+    let o = glint(&one, d.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let csv = std::fs::read_to_string(d.path().join("acc/accuracy.csv")).expect("csv");
+    assert_eq!(csv.lines().count(), 12, "{csv}");
+    assert!(
+        csv.lines().skip(1).all(|r| r.contains(",stratified,")),
+        "{csv}"
     );
 }
 

@@ -13,9 +13,10 @@ use plotters::prelude::*;
 /// The chart's size in SVG pixels; the PNG is drawn at a multiple of it.
 const SIZE: (u32, u32) = (760, 480);
 
-/// The series' colours (matplotlib's first eight, which stay apart in
-/// print and for the common colour-vision deficiencies' first pairs).
-const COLOURS: [RGBColor; 8] = [
+/// The series' colours: matplotlib's ten, then two darker ones, so that
+/// an accuracy sweep's series (two backends by two samplers by up to three
+/// knobs) all differ; the markers cycle through three shapes as well.
+const COLOURS: [RGBColor; 12] = [
     RGBColor(0x1f, 0x77, 0xb4),
     RGBColor(0xd6, 0x27, 0x28),
     RGBColor(0x2c, 0xa0, 0x2c),
@@ -24,6 +25,10 @@ const COLOURS: [RGBColor; 8] = [
     RGBColor(0x8c, 0x56, 0x4b),
     RGBColor(0xe3, 0x77, 0xc2),
     RGBColor(0x17, 0xbe, 0xcf),
+    RGBColor(0xbc, 0xbd, 0x22),
+    RGBColor(0x7f, 0x7f, 0x7f),
+    RGBColor(0x00, 0x2b, 0x5c),
+    RGBColor(0x5c, 0x00, 0x2b),
 ];
 
 /// A log-log chart: one line through its points per named series (points

@@ -14,7 +14,9 @@ use glint::scene::Scene;
 use super::AccuracyArgs;
 
 /// The reference's estimated RMSE: errors much below it are not measured.
-const REFERENCE_RMSE: f64 = 0.0005;
+/// At 0.0005 the default sampler's soft_shadows sweep (160x120) ran into it
+/// from 64 shadow samples on, its curve flattening there.
+const REFERENCE_RMSE: f64 = 0.00025;
 
 /// The reference and a line saying what it is.
 pub(super) fn get(
@@ -56,7 +58,7 @@ fn rendered(
     let mut hasher = std::collections::hash_map::DefaultHasher::new();
     bytes.hash(&mut hasher);
     let key = format!(
-        "glint {} reference v1: scene {} ({} bytes, hash {:016x}), {}x{}, {:?}\n",
+        "glint {} reference v2 (RMSE {REFERENCE_RMSE}): scene {} ({} bytes, hash {:016x}), {}x{}, {:?}\n",
         env!("CARGO_PKG_VERSION"),
         args.scene.display(),
         bytes.len(),
