@@ -316,16 +316,6 @@ fn motion_blur_leaves_static_objects_alone() {
     }
 }
 
-fn rms(a: &Framebuffer, b: &Framebuffer) -> f64 {
-    let sum: f64 = a
-        .pixels
-        .iter()
-        .zip(&b.pixels)
-        .flat_map(|(p, q)| (0..3).map(move |c| f64::from(p[c] - q[c]).powi(2)))
-        .sum();
-    (sum / (a.pixels.len() * 3) as f64).sqrt()
-}
-
 /// Least-squares slope of log(err) against log(n).
 fn slope(points: &[(f64, f64)]) -> f64 {
     let xs: Vec<f64> = points.iter().map(|p| p.0.ln()).collect();
@@ -349,15 +339,8 @@ fn slope(points: &[(f64, f64)]) -> f64 {
 /// may steepen it a little; four points of noise move it by ~0.05).
 #[test]
 fn error_falls_at_the_monte_carlo_rate() {
-    let text = "4\namb: 0.05 0.05 0.05\nshadow_samples: 1\nshutter: 1\nsampler: stratified\n\
-        light\npos: 0 5 -6\ncol: 0.9 0.9 0.9\nrad: 1.5\n\
-        sphere\npos: 0 0 -6\nrad: 0.8\ndif: 0.7 0.3 0.2\nspe: 0.3 0.3 0.3\nshi: 20\nvel: 12 0 0\n\
-        triangle\n\
-        pos: -20 -1 0 nor: 0 1 0 dif: 0.8 0.8 0.8 spe: 0 0 0 shi: 1\n\
-        pos: 20 -1 0 nor: 0 1 0 dif: 0.8 0.8 0.8 spe: 0 0 0 shi: 1\n\
-        pos: 0 -1 -40 nor: 0 1 0 dif: 0.8 0.8 0.8 spe: 0 0 0 shi: 1\n\
-        sphere\npos: -1.6 0.4 -5\nrad: 0.4\ndif: 0.2 0.5 0.8\nspe: 0.3 0.3 0.3\nshi: 20\n";
-    let base = scene_from(text);
+    let mut base = scene_from(CONVERGENCE_SCENE);
+    base.settings.sampler = Some(glint::scene::Sampler::Stratified);
     let (w, h) = (40u32, 30u32);
     let mut reference = base.clone();
     reference.settings.spp = Some(4096);

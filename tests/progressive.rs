@@ -9,7 +9,6 @@ use std::time::Duration;
 
 use common::*;
 use glint::cpu::Precision;
-use glint::images::framebuffer::Framebuffer;
 use glint::render::passes::{Progressive, StopAt, Stopped};
 use glint::render::{Backend, Job, PixelFormat, Quiet, RenderOptions, Renderer, Sink};
 use glint::scene::Scene;
@@ -88,16 +87,6 @@ fn run(scene: &Scene, r: &Run) -> Progressive {
     }
 }
 
-fn rmse(a: &Framebuffer, b: &Framebuffer) -> f64 {
-    let sq: f64 = a
-        .pixels
-        .iter()
-        .zip(&b.pixels)
-        .flat_map(|(p, q)| (0..3).map(move |c| f64::from(p[c] - q[c]).powi(2)))
-        .sum();
-    (sq / (a.pixels.len() * 3) as f64).sqrt()
-}
-
 #[test]
 fn estimated_error_tracks_the_true_error() {
     let mut backends = vec![Backend::Cpu];
@@ -130,7 +119,7 @@ fn estimated_error_tracks_the_true_error() {
         for &backend in &backends {
             let done = progressive(&scene, backend, Precision::F32, target, None);
             let estimate = done.report.estimated_rmse.expect("two passes at least");
-            let truth = rmse(&done.output.framebuffer(), &reference.output.framebuffer());
+            let truth = rms(&done.output.framebuffer(), &reference.output.framebuffer());
             eprintln!(
                 "{name} on {backend:?}: {} passes, estimate {estimate:.5}, true {truth:.5} (ratio {:.3}); reference {} passes",
                 done.report.passes,
@@ -211,7 +200,7 @@ fn adaptive_passes_reach_the_target_with_fewer_samples() {
         for &backend in &backends {
             let done = run(&scene, &at(backend, Precision::F32, target, None, true));
             let estimate = done.report.estimated_rmse.expect("estimate");
-            let truth = rmse(&done.output.framebuffer(), &reference.output.framebuffer());
+            let truth = rms(&done.output.framebuffer(), &reference.output.framebuffer());
             eprintln!(
                 "{name} adaptive on {backend:?}: {} passes, {:.2} samples per pixel on average (uniform: {}), estimate {estimate:.5}, true {truth:.5} (ratio {:.3})",
                 done.report.passes,

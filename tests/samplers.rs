@@ -249,31 +249,13 @@ fn each_sampler_gives_the_same_image_for_a_seed() {
     assert_ne!(images[0].pixels, images[1].pixels, "the samplers differ");
 }
 
-fn rms(a: &Framebuffer, b: &Framebuffer) -> f64 {
-    let sum: f64 = a
-        .pixels
-        .iter()
-        .zip(&b.pixels)
-        .flat_map(|(p, q)| (0..3).map(move |c| f64::from(p[c] - q[c]).powi(2)))
-        .sum();
-    (sum / (a.pixels.len() * 3) as f64).sqrt()
-}
-
 /// From the same samples, `sobol`'s error is below `stratified`'s on a
 /// scene with antialiasing, a sphere light and motion blur (five
 /// dimensions a sample), at every count from 16 on, and it keeps falling
 /// (a sampler that stopped covering a dimension would level off).
 #[test]
 fn sobol_reaches_a_lower_error_from_the_same_samples() {
-    let text = "4\namb: 0.05 0.05 0.05\nshadow_samples: 1\nshutter: 1\n\
-        light\npos: 0 5 -6\ncol: 0.9 0.9 0.9\nrad: 1.5\n\
-        sphere\npos: 0 0 -6\nrad: 0.8\ndif: 0.7 0.3 0.2\nspe: 0.3 0.3 0.3\nshi: 20\nvel: 12 0 0\n\
-        triangle\n\
-        pos: -20 -1 0 nor: 0 1 0 dif: 0.8 0.8 0.8 spe: 0 0 0 shi: 1\n\
-        pos: 20 -1 0 nor: 0 1 0 dif: 0.8 0.8 0.8 spe: 0 0 0 shi: 1\n\
-        pos: 0 -1 -40 nor: 0 1 0 dif: 0.8 0.8 0.8 spe: 0 0 0 shi: 1\n\
-        sphere\npos: -1.6 0.4 -5\nrad: 0.4\ndif: 0.2 0.5 0.8\nspe: 0.3 0.3 0.3\nshi: 20\n";
-    let base = scene_from(text);
+    let base = scene_from(CONVERGENCE_SCENE);
     let (w, h) = (40u32, 30u32);
     let mut reference = base.clone();
     reference.settings.spp = Some(4096);

@@ -114,7 +114,6 @@ fn stratified_2d(k: u32, n: u32, rotation: u32, jitter: vec2<f32>) -> vec2<f32> 
     return vec2((f32(cell % cols) + jitter.x) / f32(cols), (f32(cell / cols) + jitter.y) / f32(rows));
 }
 
-
 // The `sobol` sampler: Owen-scrambled Sobol points (Burley, "Practical
 // Hash-based Owen Scrambling", JCGT 9(4) 2020). A 2D dimension of a pixel
 // (its position, an area light's point at one bounce) takes Sobol's first

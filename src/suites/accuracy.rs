@@ -57,6 +57,17 @@ pub struct Point {
 }
 
 impl Point {
+    /// `knob` at `value` on `target` with the robust methods.
+    fn robust(knob: &'static str, value: String, target: Target, effects: Effects) -> Point {
+        Point {
+            knob,
+            value,
+            target,
+            methods: Methods::Robust,
+            effects,
+        }
+    }
+
     /// The settings that make a render this point.
     pub fn settings(&self) -> Settings {
         Settings {
@@ -74,13 +85,7 @@ impl Point {
 /// The points of `plan` that a sampler changes: the scene's own setting,
 /// and the spp and shadow-sample sweeps.
 fn sampled(out: &mut Vec<Point>, features: &Features, effects: &Effects, target: Target) {
-    let point = |knob: &'static str, value: String, effects: Effects| Point {
-        knob,
-        value,
-        target,
-        methods: Methods::Robust,
-        effects,
-    };
+    let point = |knob, value, effects| Point::robust(knob, value, target, effects);
     out.push(point("scene", "scene".into(), *effects));
     if features.multisample || features.motion_blur {
         let top = (effects.spp * 4).clamp(16, Effects::MAX_SPP);
@@ -147,13 +152,7 @@ pub fn plan(
             sampler: first,
             ..*effects
         };
-        let point = |knob: &'static str, value: String, effects: Effects| Point {
-            knob,
-            value,
-            target,
-            methods: Methods::Robust,
-            effects,
-        };
+        let point = |knob, value, effects| Point::robust(knob, value, target, effects);
         if features.reflection {
             for reflect_depth in 0..=effects.reflect_depth {
                 out.push(point(

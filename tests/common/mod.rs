@@ -294,3 +294,27 @@ pub fn assert_backends_agree(name: &str, scene: &Scene, w: u32, h: u32, min_allo
     let allowed = (((w * h) as f64 * MAX_DIFFERING_FRACTION).floor() as usize).max(min_allowed);
     assert_within(name, &gpu, &cpu, &cmp, allowed);
 }
+
+/// A scene with antialiasing, a sphere light sampled once per pixel sample
+/// and motion blur: five random dimensions a sample, for convergence tests
+/// (tests/effects.rs, tests/samplers.rs).
+pub const CONVERGENCE_SCENE: &str = "4\namb: 0.05 0.05 0.05\nshadow_samples: 1\nshutter: 1\n\
+    light\npos: 0 5 -6\ncol: 0.9 0.9 0.9\nrad: 1.5\n\
+    sphere\npos: 0 0 -6\nrad: 0.8\ndif: 0.7 0.3 0.2\nspe: 0.3 0.3 0.3\nshi: 20\nvel: 12 0 0\n\
+    triangle\n\
+    pos: -20 -1 0 nor: 0 1 0 dif: 0.8 0.8 0.8 spe: 0 0 0 shi: 1\n\
+    pos: 20 -1 0 nor: 0 1 0 dif: 0.8 0.8 0.8 spe: 0 0 0 shi: 1\n\
+    pos: 0 -1 -40 nor: 0 1 0 dif: 0.8 0.8 0.8 spe: 0 0 0 shi: 1\n\
+    sphere\npos: -1.6 0.4 -5\nrad: 0.4\ndif: 0.2 0.5 0.8\nspe: 0.3 0.3 0.3\nshi: 20\n";
+
+/// Root mean squared difference of two images of one size, over every
+/// channel.
+pub fn rms(a: &Framebuffer, b: &Framebuffer) -> f64 {
+    let sum: f64 = a
+        .pixels
+        .iter()
+        .zip(&b.pixels)
+        .flat_map(|(p, q)| (0..3).map(move |c| f64::from(p[c] - q[c]).powi(2)))
+        .sum();
+    (sum / (a.pixels.len() * 3) as f64).sqrt()
+}
