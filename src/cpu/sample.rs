@@ -113,26 +113,61 @@ pub fn sobol_1d<R: Real>(key: u32, i: u32) -> R {
     unit_float(laine_karras(j, hash_u32(key ^ SOBOL_X)).reverse_bits())
 }
 
-/// Sample `m` of the `n` an area light takes at sample `sample` of `pixel`
-/// on `stream`, in [0, 1)² (the shader's `area_uv`).
-pub fn area_uv<R: Real>(
+/// What an area light's samples at one sample of a pixel share, drawn once
+/// for all of them: the Sobol dimension's seeds, or the stratified grid's
+/// rotation (the shader's `area_uv` draws them per sample, to the same
+/// values).
+#[derive(Clone, Copy, Debug)]
+pub struct AreaPattern {
     sampler: Sampler,
     seed: u32,
     pixel: u32,
     sample: u32,
     stream: u32,
-    m: u32,
-    n: u32,
-) -> [R; 2] {
-    let draw = |index| rng(seed, pixel, sample, stream, index);
-    match sampler {
-        Sampler::Sobol => sobol_2d(
-            sobol_key(seed, pixel, stream),
-            sample.wrapping_mul(n).wrapping_add(m),
-        ),
-        Sampler::Stratified => {
-            let jitter = [unit_float(draw(2 * m)), unit_float(draw(2 * m + 1))];
-            stratified_2d(m, n, draw(ROTATION), jitter)
+    /// Sobol: the index's seed; stratified: the rotation.
+    shared: u32,
+    /// Sobol: the coordinates' seeds.
+    coordinates: [u32; 2],
+}
+
+impl AreaPattern {
+    /// The pattern of stream `stream` at sample `sample` of `pixel`.
+    pub fn new(sampler: Sampler, seed: u32, pixel: u32, sample: u32, stream: u32) -> AreaPattern {
+        let (shared, coordinates) = match sampler {
+            Sampler::Sobol => {
+                let key = sobol_key(seed, pixel, stream);
+                (key, [hash_u32(key ^ SOBOL_X), hash_u32(key ^ SOBOL_Y)])
+            }
+            Sampler::Stratified => (rng(seed, pixel, sample, stream, ROTATION), [0; 2]),
+        };
+        AreaPattern {
+            sampler,
+            seed,
+            pixel,
+            sample,
+            stream,
+            shared,
+            coordinates,
+        }
+    }
+
+    /// Sample `m` of `n`, in [0, 1)²: Sobol points `sample * n + m` of the
+    /// light's dimension, so that a pixel's samples together cover the
+    /// light; or cell `m` of the stratified grid.
+    pub fn uv<R: Real>(&self, m: u32, n: u32) -> [R; 2] {
+        match self.sampler {
+            Sampler::Sobol => {
+                let j = owen_scramble(self.sample.wrapping_mul(n).wrapping_add(m), self.shared);
+                let [sx, sy] = self.coordinates;
+                let x = laine_karras(j, sx).reverse_bits();
+                let y = laine_karras(sobol_second_reversed(j), sy).reverse_bits();
+                [unit_float(x), unit_float(y)]
+            }
+            Sampler::Stratified => {
+                let draw = |index| rng(self.seed, self.pixel, self.sample, self.stream, index);
+                let jitter = [unit_float(draw(2 * m)), unit_float(draw(2 * m + 1))];
+                stratified_2d(m, n, self.shared, jitter)
+            }
         }
     }
 }
@@ -196,6 +231,15 @@ mod tests {
                     }
                 }
             }
+        }
+    }
+
+    #[test]
+    fn an_area_pattern_draws_its_dimensions_points() {
+        let pattern = AreaPattern::new(Sampler::Sobol, 3, 41, 5, STREAM_LIGHT + 1);
+        let key = sobol_key(3, 41, STREAM_LIGHT + 1);
+        for m in 0..16 {
+            assert_eq!(pattern.uv::<f64>(m, 16), sobol_2d::<f64>(key, 5 * 16 + m));
         }
     }
 

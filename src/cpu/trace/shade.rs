@@ -4,8 +4,8 @@
 
 use crate::cpu::real::Real;
 use crate::cpu::sample::{
-    area_uv, rng, sobol_1d, sobol_2d, sobol_key, stratified_2d, unit_float, ROTATION, STREAM_LIGHT,
-    STREAM_PIXEL, STREAM_TIME,
+    rng, sobol_1d, sobol_2d, sobol_key, stratified_2d, unit_float, AreaPattern, ROTATION,
+    STREAM_LIGHT, STREAM_PIXEL, STREAM_TIME,
 };
 use crate::layout::{
     FLAG_NONFINITE_COLOR, FLAG_NONFINITE_SURFACE, LIGHT_POINT, LIGHT_RECT, SPHERE_BIT,
@@ -236,6 +236,7 @@ pub fn area_term<R: Real>(
     key: &SampleKey<R>,
 ) -> LightTerm<R> {
     let n = scene.shadow_samples.max(1);
+    let pattern = AreaPattern::new(scene.sampler, scene.seed, key.pixel, key.sample, stream);
     let color = light.color * (R::ONE / R::from_u32(n));
     let zero = R::v3(R::ZERO, R::ZERO, R::ZERO);
     let no_hit = Hit {
@@ -254,15 +255,7 @@ pub fn area_term<R: Real>(
     };
     let mut blocked = 0;
     for m in 0..n {
-        let uv = area_uv(
-            scene.sampler,
-            scene.seed,
-            key.pixel,
-            key.sample,
-            stream,
-            m,
-            n,
-        );
+        let uv = pattern.uv(m, n);
         let target = light_sample_point(scene.sampler, light, sp.p, uv);
         let term = point_term(scene, sp, view, target, color, key.time, &[]);
         total.contribution = total.contribution + term.contribution;
