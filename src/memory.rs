@@ -4,7 +4,8 @@
 //! kernel's OOM killer.
 //!
 //! Counted: the f32 image (12 bytes a pixel, tiles are read back into it
-//! directly), its 8-bit copy for encoding (3 bytes a pixel), and on the GPU
+//! directly), its 8-bit copy for encoding (3 bytes a pixel; a CPU render to
+//! 8-bit pixels makes them band by band and counts them alone), and on the GPU
 //! path the packed scene, its staging copy, the tile buffers and, on a device
 //! without memory of its own (lavapipe and other CPU devices), the device
 //! copies too. The parsed scene and its BVH already exist when this is asked
@@ -35,6 +36,14 @@ impl MemoryNeed {
                 ("image", pixels * IMAGE_BYTES_PER_PIXEL),
                 ("8-bit copy", pixels * RGB8_BYTES_PER_PIXEL),
             ],
+        }
+    }
+
+    /// The 8-bit image alone: a CPU render made straight into bytes.
+    pub fn rgb8(width: u32, height: u32) -> MemoryNeed {
+        let pixels = u64::from(width) * u64::from(height);
+        MemoryNeed {
+            parts: vec![("8-bit image", pixels * RGB8_BYTES_PER_PIXEL)],
         }
     }
 
@@ -179,6 +188,13 @@ mod tests {
             need.to_string(),
             "7.2 MiB (image 5.7 MiB, 8-bit copy 1.4 MiB)"
         );
+    }
+
+    #[test]
+    fn an_8_bit_cpu_render_counts_its_bytes_alone() {
+        let need = MemoryNeed::rgb8(1000, 500);
+        assert_eq!(need.total(), 500_000 * 3);
+        assert_eq!(need.to_string(), "1.4 MiB (8-bit image 1.4 MiB)");
     }
 
     #[test]

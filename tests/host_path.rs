@@ -11,7 +11,8 @@
 //!   equal single renders at each frame's time.
 //! - A GPU animation whose triangles do not move uploads them once.
 //! - On the GPU, 8-bit pixels are packed on the device: 4 bytes a pixel
-//!   read back, the same pixels as the float render converted.
+//!   read back, the same pixels as the float render converted; on the CPU
+//!   they are made band by band in the render's threads, the same bytes.
 //! - A device failing mid-animation leaves the finished frames whole.
 
 mod common;
@@ -100,6 +101,62 @@ fn eight_bit_renders_equal_the_float_image_converted() {
             }
             let jpeg = |i: &Image| i.encode(ImageFile::Jpeg, &EncodeOptions::default());
             assert_eq!(jpeg(&bytes), jpeg(&float), "{name} on {backend:?} as JPEG");
+        }
+    }
+}
+
+/// On the CPU an 8-bit render's pixels are made band by band in the render
+/// threads (the float image is never whole): the same bytes as the float
+/// render converted, for crops and parts (rows and pixels left out), on the
+/// f32 packet path, and on the f64 pixel-by-pixel one.
+#[test]
+fn eight_bit_cpu_renders_convert_each_band_as_the_image_would() {
+    #[derive(Debug)]
+    enum Which {
+        Whole,
+        Crop(glint::parts::crop::Crop),
+        Part(glint::parts::PartOf),
+    }
+    fn job<'a>(scene: &'a Scene, which: &Which) -> Job<'a> {
+        match which {
+            Which::Whole => Job::new(scene),
+            Which::Crop(c) => Job::new(scene).crop(*c),
+            Which::Part(p) => Job::new(scene).part(*p),
+        }
+    }
+    let mut jobs = vec![
+        Which::Whole,
+        Which::Crop(glint::parts::crop::Crop::parse("13,7,61,50").expect("crop")),
+    ];
+    for index in 0..3 {
+        jobs.push(Which::Part(glint::parts::PartOf { index, count: 3 }));
+    }
+    for (name, scene) in scenes().into_iter().take(5) {
+        for precision in [glint::cpu::Precision::F32, glint::cpu::Precision::F64] {
+            let options = RenderOptions {
+                width: W,
+                height: H,
+                backend: Backend::Cpu,
+                precision,
+                ..Default::default()
+            };
+            let r = Renderer::new(&options).expect("renderer");
+            for which in &jobs {
+                let run = |pixels| {
+                    r.run(&job(&scene, which), &Sink::Memory(pixels), &Quiet)
+                        .expect("renders")
+                };
+                let (a, b) = (run(PixelFormat::Float), run(PixelFormat::Rgb8));
+                assert!(
+                    matches!(b.output.image, Image::Rgb8(_)),
+                    "{name}: 8-bit pixels"
+                );
+                assert_eq!(
+                    *b.output.image.to_rgb8(),
+                    *a.output.image.to_rgb8(),
+                    "{name}, {which:?}, {precision:?}"
+                );
+            }
         }
     }
 }

@@ -18,9 +18,10 @@ use rayon::prelude::*;
 
 use crate::bvh::Bvh;
 use crate::camera::Camera;
-use crate::images::framebuffer::Framebuffer;
+use crate::images::framebuffer::{to_u8, Framebuffer, Image};
 use crate::probe::{PathLight, PathRecord, PathSurface, ProbeImage, ProbePixel};
 use crate::scene::Scene;
+use image::RgbImage;
 use trace::{
     centre_key, light_term, pixel_color, pixel_ray, surface_point, trace_primary, CpuGeometry,
     CpuScene,
@@ -80,36 +81,118 @@ pub fn render_rows(
     keep: &(dyn Fn(u32, u32) -> bool + Sync),
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> (Framebuffer, Work) {
+    let (image, work) = render_rows_to(
+        scene, bvh, geometry, camera, options, rows, keep, progress, false,
+    );
+    match image {
+        Image::Float(fb) => (fb, work),
+        Image::Rgb8(_) => unreachable!("asked for floats"),
+    }
+}
+
+/// As `render_rows`, into the 8-bit image when `eight_bit` (each band
+/// turned to bytes on its own thread as soon as it is rendered, `to_u8`:
+/// the float image is never whole, and at 1080p the separate conversion's
+/// 6 ms and 24 MB are gone), else into the float one.
+#[allow(clippy::too_many_arguments)]
+pub fn render_rows_to(
+    scene: &Scene,
+    bvh: &Bvh,
+    geometry: &Geometry,
+    camera: &Camera,
+    options: &CpuOptions,
+    rows: std::ops::Range<u32>,
+    keep: &(dyn Fn(u32, u32) -> bool + Sync),
+    progress: &(dyn Fn(u64, u64) + Sync),
+    eight_bit: bool,
+) -> (Image, Work) {
     fn colour<R: Real>(s: &CpuScene<R>, x: u32, y: u32) -> [f32; 3] {
         R::v3_to_f32(R::clamp01(pixel_color(s, x, y)))
     }
-    let pixel = |x: u32, y: u32, f: &dyn Fn() -> [f32; 3]| if keep(x, y) { f() } else { [0.0; 3] };
-    let (pixels, work) = match geometry {
+    fn pixels<'k, R: Real>(
+        s: &CpuScene<R>,
+        keep: &'k (dyn Fn(u32, u32) -> bool + Sync),
+    ) -> impl Fn(&CpuScene<R>, u32, &mut [[f32; 3]]) + Sync + 'k {
+        let w = s.size[0] as usize;
+        move |s, y, row| {
+            for (x, px) in row[..w].iter_mut().enumerate() {
+                let x = x as u32;
+                *px = if keep(x, y) {
+                    colour(s, x, y)
+                } else {
+                    [0.0; 3]
+                };
+            }
+        }
+    }
+    let to = Bands {
+        progress,
+        active: rows,
+        eight_bit,
+    };
+    match geometry {
         Geometry::F32(g) => {
             let s = CpuScene::new(scene, bvh, g, camera, options);
             if options.packets && packet::applies(&s) {
-                per_band(&s, progress, packet::TILE[1], rows, |s, y0, band| {
+                to.render(&s, packet::TILE[1], |s, y0, band| {
                     packet::fill_band(s, y0, band, keep);
                 })
             } else {
-                per_pixel(&s, progress, rows, |s, x, y| {
-                    pixel(x, y, &|| colour(s, x, y))
-                })
+                to.render(&s, 1, pixels(&s, keep))
             }
         }
         Geometry::F64(g) => {
             let s = CpuScene::new(scene, bvh, g, camera, options);
-            per_pixel(&s, progress, rows, |s, x, y| {
-                pixel(x, y, &|| colour(s, x, y))
-            })
+            to.render(&s, 1, pixels(&s, keep))
         }
-    };
-    let fb = Framebuffer {
-        width: camera.width,
-        height: camera.height,
-        pixels,
-    };
-    (fb, work)
+    }
+}
+
+/// Which rows a render's bands cover, who hears of them, and what they
+/// become.
+struct Bands<'a> {
+    progress: &'a (dyn Fn(u64, u64) + Sync),
+    active: std::ops::Range<u32>,
+    eight_bit: bool,
+}
+
+impl Bands<'_> {
+    /// The image `fill(scene, y0, band)` makes, `rows` rows a band.
+    fn render<R: Real>(
+        &self,
+        scene: &CpuScene<R>,
+        rows: u32,
+        fill: impl Fn(&CpuScene<R>, u32, &mut [[f32; 3]]) + Sync,
+    ) -> (Image, Work) {
+        let [width, height] = scene.size;
+        if !self.eight_bit {
+            let (pixels, work) = per_band(scene, self.progress, rows, self.active.clone(), fill);
+            let fb = Framebuffer {
+                width,
+                height,
+                pixels,
+            };
+            return (Image::Float(fb), work);
+        }
+        let mut bytes = vec![0u8; 3 * width as usize * height as usize];
+        let work = for_bands(
+            scene,
+            self.progress,
+            rows,
+            self.active.clone(),
+            &mut bytes,
+            3,
+            |scene, y0, out: &mut [u8]| {
+                let mut band = vec![[0.0f32; 3]; out.len() / 3];
+                fill(scene, y0, &mut band);
+                for (o, &v) in out.iter_mut().zip(bytemuck::cast_slice::<_, f32>(&band)) {
+                    *o = to_u8(v);
+                }
+            },
+        );
+        let image = RgbImage::from_raw(width, height, bytes).expect("3 bytes a pixel");
+        (Image::Rgb8(image), work)
+    }
 }
 
 /// What a render's threads did besides their pixels.
@@ -295,30 +378,47 @@ fn per_band<R: Real, T: Send + Default + Clone>(
     active: std::ops::Range<u32>,
     f: impl Fn(&CpuScene<R>, u32, &mut [T]) + Sync,
 ) -> (Vec<T>, Work) {
+    let [w, h] = scene.size;
+    let mut out = vec![T::default(); w as usize * h as usize];
+    let work = for_bands(scene, progress, rows, active, &mut out, 1, f);
+    (out, work)
+}
+
+/// `per_band`'s bands over `out`, which holds `per_pixel` elements a pixel.
+fn for_bands<R: Real, U: Send>(
+    scene: &CpuScene<R>,
+    progress: &(dyn Fn(u64, u64) + Sync),
+    rows: u32,
+    active: std::ops::Range<u32>,
+    out: &mut [U],
+    per_pixel: usize,
+    f: impl Fn(&CpuScene<R>, u32, &mut [U]) + Sync,
+) -> Work {
     use std::sync::atomic::{AtomicU64, Ordering};
     let [w, h] = scene.size;
     let rows = rows.max(1);
     let done = AtomicU64::new(0);
     let rays = [AtomicU64::new(0), AtomicU64::new(0)];
     let cpu_ns = AtomicU64::new(0);
-    let mut out = vec![T::default(); w as usize * h as usize];
-    let mut bands: Vec<Option<&mut [T]>> = out
-        .chunks_mut((w * rows).max(1) as usize)
+    let row_len = w as usize * per_pixel;
+    let mut bands: Vec<Option<&mut [U]>> = out
+        .chunks_mut((row_len * rows as usize).max(1))
         .map(Some)
         .collect();
-    let ordered: Vec<(u32, &mut [T])> = spread_order(bands.len() as u32)
+    let ordered: Vec<(u32, &mut [U])> = spread_order(bands.len() as u32)
         .into_iter()
         .filter(|&b| b * rows < active.end && (b + 1) * rows > active.start)
         .filter_map(|b| Some((b * rows, bands[b as usize].take()?)))
         .collect();
-    let visited = ordered.iter().map(|(_, b)| b.len() as u64).sum::<u64>() / u64::from(w.max(1));
+    let visited =
+        ordered.iter().map(|(_, b)| b.len() as u64).sum::<u64>() / (row_len.max(1) as u64);
     done.store(u64::from(h) - visited, Ordering::Relaxed);
     ordered.into_par_iter().for_each(|(y0, band)| {
         // A band runs on one thread from start to end, so the thread's
         // counters moved by this band's rays alone.
         let before = trace::rays_cast();
         let started = crate::timing::thread_cpu_time();
-        let n = band.len() as u64 / u64::from(w.max(1));
+        let n = band.len() as u64 / (row_len.max(1) as u64);
         f(scene, y0, band);
         if let (Some(a), Some(b)) = (started, crate::timing::thread_cpu_time()) {
             cpu_ns.fetch_add(b.saturating_sub(a).as_nanos() as u64, Ordering::Relaxed);
@@ -330,13 +430,12 @@ fn per_band<R: Real, T: Send + Default + Clone>(
         let finished = done.fetch_add(n, Ordering::Relaxed) + n;
         progress(finished, u64::from(h));
     });
-    let work = Work {
+    Work {
         rays: rays.map(AtomicU64::into_inner),
         // The clock is the system's: there for every band or for none.
         cpu_time: crate::timing::thread_cpu_time()
             .map(|_| Duration::from_nanos(cpu_ns.into_inner())),
-    };
-    (out, work)
+    }
 }
 
 /// The rows 0..n in an order whose every stretch is spread over the whole

@@ -10,7 +10,6 @@ use crate::camera::Camera;
 use crate::cpu::{self, CpuOptions, Precision};
 use crate::features::Features;
 use crate::gpu::{Context, ContextOptions, GpuRenderOptions, GpuRenderer};
-use crate::images::framebuffer::Image;
 use crate::layout::GpuScene;
 use crate::memory::{self, MemoryNeed};
 use crate::parts::cut::{Costs, Span};
@@ -530,10 +529,14 @@ impl Renderer {
                 image
             }
             (Engine::Cpu(precision), Packed::Cpu(geometry)) => {
+                if pixels == PixelFormat::Rgb8 {
+                    // The bands become bytes as they are rendered.
+                    need = MemoryNeed::rgb8(p.camera.width, p.camera.height);
+                }
                 need.check(memory::available())?;
                 let start = Instant::now();
                 let options = self.cpu_options(p, *precision);
-                let (framebuffer, work) = cpu::render_rows(
+                let (image, work) = cpu::render_rows_to(
                     scene,
                     &p.bvh,
                     geometry,
@@ -543,6 +546,9 @@ impl Renderer {
                     // Cancelled, the bands left trace nothing.
                     &|x, y| region.keeps(x, y) && !self.cancelled(),
                     progress,
+                    // 8-bit pixels are made band by band in the render's
+                    // threads, as the GPU packs them on the device.
+                    pixels == PixelFormat::Rgb8,
                 );
                 if self.cancelled() {
                     return Err(Error::Cancelled);
@@ -553,12 +559,7 @@ impl Renderer {
                 if let Some(t) = work.cpu_time {
                     timings.count(crate::timing::CPU_TIME_NS, t.as_nanos() as u64);
                 }
-                match pixels {
-                    PixelFormat::Float => Image::Float(framebuffer),
-                    PixelFormat::Rgb8 => {
-                        Image::Rgb8(timings.time("to 8-bit", || framebuffer.to_rgb8()))
-                    }
-                }
+                image
             }
             // `pack` makes each engine its own.
             _ => unreachable!("a scene packed for another backend"),
