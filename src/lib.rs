@@ -39,7 +39,7 @@
 //! ```text
 //! scene::read_scene -> Scene --bvh::Bvh::build--> Bvh
 //!   GPU: layout::GpuScene::pack -> gpu::GpuRenderer -> Image
-//!   CPU: cpu::render_rows (f32 twin of the shader, or f64 ground truth) -> Framebuffer
+//!   CPU: cpu::render_rows (f32 twin of the shader, or f64 ground truth) -> Image
 //! render::Sink: images::encode, images::framebuffer::write_bytes; images::compare
 //! ```
 

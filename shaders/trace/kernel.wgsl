@@ -71,7 +71,7 @@ fn shade_step(st: ptr<function, PixelState>, sp: SurfacePoint, view: vec3<f32>, 
             let n = max(frame.shadow_samples, 1u);
             let m = (*st).area_sample;
             let color = light.color * (1.0 / f32(n));
-            let uv = area_uv(key.pixel, key.sample, stream, m, n);
+            let uv = area_uv(area_pattern(key.pixel, key.sample, stream), m, n);
             let term = point_term(sp, view, light_sample_point(light, sp.p, uv), color, key.time, vec2(0u));
             (*st).area += term.contribution;
             (*st).area_sample = m + 1u;

@@ -168,9 +168,20 @@ fn sobol_key(pixel: u32, stream: u32) -> u32 {
 // owen_scramble(Sobol's coordinate of j), written without the two bit
 // reversals that cancel.
 fn sobol_2d(key: u32, i: u32) -> vec2<f32> {
+    return sobol_2d_seeded(key, sobol_seeds(key), i);
+}
+
+// The seeds of a 2D dimension's two coordinates, from its key.
+fn sobol_seeds(key: u32) -> vec2<u32> {
+    return vec2(hash_u32(key ^ SOBOL_X), hash_u32(key ^ SOBOL_Y));
+}
+
+// sobol_2d with its coordinates' seeds drawn already (an area light's
+// samples share them).
+fn sobol_2d_seeded(key: u32, seeds: vec2<u32>, i: u32) -> vec2<f32> {
     let j = owen_scramble(i, key);
-    let x = reverseBits(laine_karras(j, hash_u32(key ^ SOBOL_X)));
-    let y = reverseBits(laine_karras(sobol_second_reversed(j), hash_u32(key ^ SOBOL_Y)));
+    let x = reverseBits(laine_karras(j, seeds.x));
+    let y = reverseBits(laine_karras(sobol_second_reversed(j), seeds.y));
     return vec2(unit_float(x), unit_float(y));
 }
 
@@ -180,15 +191,35 @@ fn sobol_1d(key: u32, i: u32) -> f32 {
     return unit_float(reverseBits(laine_karras(j, hash_u32(key ^ SOBOL_X))));
 }
 
-// Sample m of the n an area light takes at sample `sample` of a pixel, on
-// stream `stream`, in [0, 1)^2: the light's pattern (stratified), or points
-// sample * n + m of its Sobol dimension, so that all of a pixel's samples
-// together are stratified over the light, not only each sample's n.
-fn area_uv(pixel: u32, sample: u32, stream: u32, m: u32, n: u32) -> vec2<f32> {
+// What an area light's samples at one sample of a pixel share, drawn once
+// for all of them (the CPU's AreaPattern).
+struct AreaPattern {
+    pixel: u32,
+    sample: u32,
+    stream: u32,
+    // sobol: the dimension's key; stratified: the grid's rotation.
+    base: u32,
+    // sobol: the coordinates' seeds.
+    seeds: vec2<u32>,
+}
+
+fn area_pattern(pixel: u32, sample: u32, stream: u32) -> AreaPattern {
     if (frame.sampling == SAMPLER_SOBOL) {
-        return sobol_2d(sobol_key(pixel, stream), sample * n + m);
+        let key = sobol_key(pixel, stream);
+        return AreaPattern(pixel, sample, stream, key, sobol_seeds(key));
     }
-    let rotation = rng(pixel, sample, stream, ROTATION);
-    let jitter = vec2(unit_float(rng(pixel, sample, stream, 2u * m)), unit_float(rng(pixel, sample, stream, 2u * m + 1u)));
-    return stratified_2d(m, n, rotation, jitter);
+    return AreaPattern(pixel, sample, stream, rng(pixel, sample, stream, ROTATION), vec2(0u));
+}
+
+// Sample m of the n an area light takes, in [0, 1)^2: points sample * n + m
+// of its Sobol dimension, so that all of a pixel's samples together are
+// stratified over the light, not only each sample's n; or cell m of the
+// stratified grid.
+fn area_uv(p: AreaPattern, m: u32, n: u32) -> vec2<f32> {
+    if (frame.sampling == SAMPLER_SOBOL) {
+        return sobol_2d_seeded(p.base, p.seeds, p.sample * n + m);
+    }
+    let jitter = vec2(unit_float(rng(p.pixel, p.sample, p.stream, 2u * m)),
+                      unit_float(rng(p.pixel, p.sample, p.stream, 2u * m + 1u)));
+    return stratified_2d(m, n, p.base, jitter);
 }

@@ -197,13 +197,14 @@ fn concentric_disc(uv: vec2<f32>) -> vec2<f32> {
 // found when every sample is blocked (the point is in the umbra).
 fn area_term(sp: SurfacePoint, view: vec3<f32>, light: Light, stream: u32, key: SampleKey) -> LightTerm {
     let n = max(frame.shadow_samples, 1u);
+    let pattern = area_pattern(key.pixel, key.sample, stream);
     let color = light.color * (1.0 / f32(n));
     var total = LightTerm(vec3(0.0), Hit(0.0, NO_HIT, 0.0, 0.0), 0.0, 0.0, 0.0, vec3(0.0));
     var blocked = 0u;
     var m = 0u;
     for (; m < n; m++) {
         work += 1u;
-        let uv = area_uv(key.pixel, key.sample, stream, m, n);
+        let uv = area_uv(pattern, m, n);
         let term = point_term(sp, view, light_sample_point(light, sp.p, uv), color, key.time, vec2(0u));
         total.contribution += term.contribution;
         total.origin = term.origin;

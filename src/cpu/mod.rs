@@ -64,38 +64,21 @@ pub fn render_where(
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> (Framebuffer, Work) {
     let rows = 0..camera.height;
-    render_rows(scene, bvh, geometry, camera, options, rows, keep, progress)
-}
-
-/// As `render_where`, knowing that every pixel `keep` takes lies in `rows`:
-/// the others are not visited at all (a part of a large image pays for its
-/// own rows only, not for asking `keep` of every pixel).
-#[allow(clippy::too_many_arguments)]
-pub fn render_rows(
-    scene: &Scene,
-    bvh: &Bvh,
-    geometry: &Geometry,
-    camera: &Camera,
-    options: &CpuOptions,
-    rows: std::ops::Range<u32>,
-    keep: &(dyn Fn(u32, u32) -> bool + Sync),
-    progress: &(dyn Fn(u64, u64) + Sync),
-) -> (Framebuffer, Work) {
-    let (image, work) = render_rows_to(
+    let (image, work) = render_rows(
         scene, bvh, geometry, camera, options, rows, keep, progress, false,
     );
-    match image {
-        Image::Float(fb) => (fb, work),
-        Image::Rgb8(_) => unreachable!("asked for floats"),
-    }
+    (image.into_float(), work)
 }
 
-/// As `render_rows`, into the 8-bit image when `eight_bit` (each band
-/// turned to bytes on its own thread as soon as it is rendered, `to_u8`:
-/// the float image is never whole, and at 1080p the separate conversion's
-/// 6 ms and 24 MB are gone), else into the float one.
+/// As `render_where`, knowing that every pixel `keep` takes lies in `rows`
+/// (the others are not visited at all: a part of a large image pays for its
+/// own rows only, not for asking `keep` of every pixel), into the 8-bit
+/// image when `eight_bit` (each band turned to bytes on its own thread as
+/// soon as it is rendered, `to_u8`: the float image is never whole, and at
+/// 1080p the separate conversion's 6 ms and 24 MB are gone), else into the
+/// float one.
 #[allow(clippy::too_many_arguments)]
-pub fn render_rows_to(
+pub fn render_rows(
     scene: &Scene,
     bvh: &Bvh,
     geometry: &Geometry,

@@ -101,9 +101,21 @@ pub fn sobol_key(seed: u32, pixel: u32, stream: u32) -> u32 {
 /// Point `i` of a pixel's 2D dimension `key`, in [0, 1)²: Owen-scrambled
 /// Sobol with a scrambled index (the shader's `sobol_2d`).
 pub fn sobol_2d<R: Real>(key: u32, i: u32) -> [R; 2] {
+    sobol_2d_seeded(key, sobol_seeds(key), i)
+}
+
+/// The seeds of a 2D dimension's two coordinates, from its key (the
+/// shader's `sobol_seeds`).
+pub fn sobol_seeds(key: u32) -> [u32; 2] {
+    [hash_u32(key ^ SOBOL_X), hash_u32(key ^ SOBOL_Y)]
+}
+
+/// `sobol_2d` with its coordinates' seeds drawn already (an area light's
+/// samples share them; the shader's `sobol_2d_seeded`).
+pub fn sobol_2d_seeded<R: Real>(key: u32, seeds: [u32; 2], i: u32) -> [R; 2] {
     let j = owen_scramble(i, key);
-    let x = laine_karras(j, hash_u32(key ^ SOBOL_X)).reverse_bits();
-    let y = laine_karras(sobol_second_reversed(j), hash_u32(key ^ SOBOL_Y)).reverse_bits();
+    let x = laine_karras(j, seeds[0]).reverse_bits();
+    let y = laine_karras(sobol_second_reversed(j), seeds[1]).reverse_bits();
     [unit_float(x), unit_float(y)]
 }
 
@@ -114,9 +126,8 @@ pub fn sobol_1d<R: Real>(key: u32, i: u32) -> R {
 }
 
 /// What an area light's samples at one sample of a pixel share, drawn once
-/// for all of them: the Sobol dimension's seeds, or the stratified grid's
-/// rotation (the shader's `area_uv` draws them per sample, to the same
-/// values).
+/// for all of them: the Sobol dimension's key and seeds, or the stratified
+/// grid's rotation (the shader's `AreaPattern`, `area_pattern`).
 #[derive(Clone, Copy, Debug)]
 pub struct AreaPattern {
     sampler: Sampler,
@@ -124,19 +135,19 @@ pub struct AreaPattern {
     pixel: u32,
     sample: u32,
     stream: u32,
-    /// Sobol: the index's seed; stratified: the rotation.
-    shared: u32,
+    /// Sobol: the dimension's key; stratified: the rotation.
+    base: u32,
     /// Sobol: the coordinates' seeds.
-    coordinates: [u32; 2],
+    seeds: [u32; 2],
 }
 
 impl AreaPattern {
     /// The pattern of stream `stream` at sample `sample` of `pixel`.
     pub fn new(sampler: Sampler, seed: u32, pixel: u32, sample: u32, stream: u32) -> AreaPattern {
-        let (shared, coordinates) = match sampler {
+        let (base, seeds) = match sampler {
             Sampler::Sobol => {
                 let key = sobol_key(seed, pixel, stream);
-                (key, [hash_u32(key ^ SOBOL_X), hash_u32(key ^ SOBOL_Y)])
+                (key, sobol_seeds(key))
             }
             Sampler::Stratified => (rng(seed, pixel, sample, stream, ROTATION), [0; 2]),
         };
@@ -146,27 +157,24 @@ impl AreaPattern {
             pixel,
             sample,
             stream,
-            shared,
-            coordinates,
+            base,
+            seeds,
         }
     }
 
     /// Sample `m` of `n`, in [0, 1)²: Sobol points `sample * n + m` of the
     /// light's dimension, so that a pixel's samples together cover the
-    /// light; or cell `m` of the stratified grid.
+    /// light; or cell `m` of the stratified grid (the shader's `area_uv`).
     pub fn uv<R: Real>(&self, m: u32, n: u32) -> [R; 2] {
         match self.sampler {
             Sampler::Sobol => {
-                let j = owen_scramble(self.sample.wrapping_mul(n).wrapping_add(m), self.shared);
-                let [sx, sy] = self.coordinates;
-                let x = laine_karras(j, sx).reverse_bits();
-                let y = laine_karras(sobol_second_reversed(j), sy).reverse_bits();
-                [unit_float(x), unit_float(y)]
+                let i = self.sample.wrapping_mul(n).wrapping_add(m);
+                sobol_2d_seeded(self.base, self.seeds, i)
             }
             Sampler::Stratified => {
                 let draw = |index| rng(self.seed, self.pixel, self.sample, self.stream, index);
                 let jitter = [unit_float(draw(2 * m)), unit_float(draw(2 * m + 1))];
-                stratified_2d(m, n, self.shared, jitter)
+                stratified_2d(m, n, self.base, jitter)
             }
         }
     }

@@ -536,7 +536,7 @@ impl Renderer {
                 need.check(memory::available())?;
                 let start = Instant::now();
                 let options = self.cpu_options(p, *precision);
-                let (image, work) = cpu::render_rows_to(
+                let (image, work) = cpu::render_rows(
                     scene,
                     &p.bvh,
                     geometry,
