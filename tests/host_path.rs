@@ -10,8 +10,9 @@
 //! - Frames written by `--frames` (rendered while the last is encoded)
 //!   equal single renders at each frame's time.
 //! - A GPU animation whose triangles do not move uploads them once.
-//! - On the GPU, 8-bit pixels are packed on the device: 4 bytes a pixel
-//!   read back, the same pixels as the float render converted; on the CPU
+//! - On the GPU, pixels are packed on the device: 4 bytes a pixel read back
+//!   for 8-bit files, the same pixels as the float render converted, and 12
+//!   for floats, the texels' own bits; on the CPU
 //!   they are made band by band in the render's threads, the same bytes.
 //! - A device failing mid-animation leaves the finished frames whole.
 
@@ -275,10 +276,12 @@ fn an_animation_uploads_its_static_triangles_once() {
     }
 }
 
-/// On the GPU an 8-bit render is packed on the device: the host reads 4
-/// bytes a pixel (16 for floats), and crops and parts are packed alike.
+/// On the GPU a render is packed on the device as its file needs: the host
+/// reads 4 bytes a pixel for 8-bit pixels and 12 for floats (not the 16 of
+/// a texel), the floats bit for bit the texels' own (`read_texels`), and
+/// crops and parts are packed alike.
 #[test]
-fn eight_bit_gpu_renders_read_back_four_bytes_a_pixel() {
+fn gpu_renders_read_back_what_the_file_needs() {
     if gpu().is_none() {
         return;
     }
@@ -290,9 +293,29 @@ fn eight_bit_gpu_renders_read_back_four_bytes_a_pixel() {
     let read = |out: &glint::render::RenderOutput| out.timings.counted(READBACK_BYTES);
     let a = float.render(&scene, &|_, _| {}).expect("renders");
     let b = bytes.render(&scene, &|_, _| {}).expect("renders");
-    assert_eq!(read(&a), 16 * pixels);
+    assert_eq!(read(&a), 12 * pixels);
     assert_eq!(read(&b), 4 * pixels);
     assert_eq!(*b.image.to_rgb8(), *a.image.to_rgb8());
+    let mut options = RenderOptions {
+        width: W,
+        height: H,
+        backend: Backend::Gpu,
+        ..Default::default()
+    };
+    options.gpu.read_texels = true;
+    let texels = Renderer::new(&options)
+        .expect("renderer")
+        .render(&scene, &|_, _| {})
+        .expect("renders");
+    assert_eq!(read(&texels), 16 * pixels);
+    let bits = |out: &glint::render::RenderOutput| -> Vec<u32> {
+        let fb = out.framebuffer();
+        fb.pixels.iter().flatten().map(|v| v.to_bits()).collect()
+    };
+    assert!(
+        bits(&a) == bits(&texels),
+        "packed floats differ from the texels"
+    );
     let crop = glint::parts::crop::Crop::parse("13,7,61,50").expect("crop");
     // A job's pixels come as its sink asks, whatever the renderer's options.
     let run = |r: &glint::render::Renderer, job: Job, pixels| {
@@ -301,7 +324,7 @@ fn eight_bit_gpu_renders_read_back_four_bytes_a_pixel() {
     let a = run(&float, Job::new(&scene).crop(crop), PixelFormat::Float);
     let b = run(&float, Job::new(&scene).crop(crop), PixelFormat::Rgb8);
     assert_eq!(read(&b.output), 4 * 48 * 43);
-    assert_eq!(read(&a.output), 16 * 48 * 43);
+    assert_eq!(read(&a.output), 12 * 48 * 43);
     assert_eq!(*b.output.image.to_rgb8(), *a.output.image.to_rgb8(), "crop");
     for index in 0..3 {
         let part = glint::parts::PartOf { index, count: 3 };

@@ -13,8 +13,43 @@ use crate::scene::Effects;
 pub(super) const SLOTS: usize = 2;
 /// Output texels are `vec4<f32>`.
 pub(super) const TEXEL_BYTES: u64 = 16;
-/// Packed 8-bit texels (`GpuRenderOptions::pack_rgb8`) are one `u32`.
-pub(super) const PACKED_BYTES: u64 = 4;
+
+/// What a colour job's texels become on the device before they cross to
+/// the host: what the file needs, no padding.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(super) enum Packing {
+    /// R, G, B, 255 in one `u32` (`shaders/pack.wgsl`; `pack_rgb8`).
+    Rgb8,
+    /// f32 R, G, B (`shaders/pack_float.wgsl`).
+    RgbF32,
+}
+
+impl Packing {
+    /// Bytes a texel packed.
+    pub(super) fn bytes(self) -> u64 {
+        match self {
+            Packing::Rgb8 => 4,
+            Packing::RgbF32 => 12,
+        }
+    }
+
+    /// Its place in `Resources::pack`.
+    pub(super) fn index(self) -> usize {
+        self as usize
+    }
+
+    /// The shader, its name and entry point.
+    pub(super) fn shader(self) -> (&'static str, &'static str, &'static std::ffi::CStr) {
+        match self {
+            Packing::Rgb8 => ("pack", include_str!("../../../shaders/pack.wgsl"), c"pack"),
+            Packing::RgbF32 => (
+                "pack_float",
+                include_str!("../../../shaders/pack_float.wgsl"),
+                c"pack_float",
+            ),
+        }
+    }
+}
 /// Binding indices (the shader's header lists them).
 pub(super) const B_FRAME: usize = 0;
 pub(super) const B_TILE: usize = 1;
@@ -62,8 +97,13 @@ pub struct GpuRenderOptions {
     pub one_pass_first: bool,
     /// Colour renders: pack each tile's texels into 8-bit pixels on the
     /// device (`shaders/pack.wgsl`), so the host reads 4 bytes a pixel,
-    /// and hand back `Image::Rgb8`.
+    /// and hand back `Image::Rgb8`. Otherwise colour renders pack f32 RGB
+    /// (12 bytes a pixel, `shaders/pack_float.wgsl`).
     pub pack_rgb8: bool,
+    /// Float colour renders read the whole `vec4<f32>` texels (16 bytes a
+    /// pixel) instead of packing them: what every float render did before
+    /// the pack, kept to check that the pack changes no bit.
+    pub read_texels: bool,
 }
 
 impl Default for GpuRenderOptions {
@@ -84,6 +124,7 @@ impl Default for GpuRenderOptions {
             uniform_lists: true,
             one_pass_first: true,
             pack_rgb8: false,
+            read_texels: false,
         }
     }
 }

@@ -309,15 +309,17 @@ impl GpuRenderer {
                 .expect("pixel count matches width * height");
             return Ok((Image::Rgb8(image), timings));
         }
+        // f32 R, G, B per texel (`shaders/pack_float.wgsl`), or the whole
+        // texels where `read_texels` asks.
         let mut pixels = vec![[0.0f32; 3]; count];
         let timings = self.run(work, progress, &mut |rect, bytes| {
-            place_tile(
-                rect,
-                bytemuck::cast_slice(bytes),
-                width,
-                &mut pixels,
-                |t: &[f32; 4]| [t[0], t[1], t[2]],
-            )
+            if options.read_texels {
+                let rgba = |t: &[f32; 4]| [t[0], t[1], t[2]];
+                place_tile(rect, bytemuck::cast_slice(bytes), width, &mut pixels, rgba)
+            } else {
+                let rgb = |t: &[f32; 3]| *t;
+                place_tile(rect, bytemuck::cast_slice(bytes), width, &mut pixels, rgb)
+            }
         })?;
         let fb = Framebuffer {
             width: camera.width,

@@ -13,8 +13,9 @@ use std::time::{Duration, Instant};
 use ash::vk;
 
 use super::job::{
-    tile_edge, tile_texels, tiles, GpuRenderOptions, Job, TileRect, TileWork, BUDGET_BACKOFF,
-    B_FRAME, B_OUTPUT, B_STATE, PACKED_BYTES, PATH_MAX_LIGHTS, RESUMABLE_REDOS, SLOTS, TEXEL_BYTES,
+    tile_edge, tile_texels, tiles, GpuRenderOptions, Job, Packing, TileRect, TileWork,
+    BUDGET_BACKOFF, B_FRAME, B_OUTPUT, B_STATE, PATH_MAX_LIGHTS, RESUMABLE_REDOS, SLOTS,
+    TEXEL_BYTES,
 };
 use super::plan::{capped, check_limits, key, scene_uploads, upload};
 use super::resources::{scene_buffer, Gpu, Resources};
@@ -74,9 +75,15 @@ impl Gpu<'_> {
         let mut timings = Timings::default();
         let tile_edge = tile_edge(options.tile_size);
         let (kernel, tiles, out_texels) = job_tiles(job, scene, camera, options, rects);
-        // 8-bit pixels packed on the device, for colour jobs that ask.
-        let pack = options.pack_rgb8 && matches!(job, Job::Image(Kernel::Render) | Job::Rects);
-        let texel_bytes = if pack { PACKED_BYTES } else { TEXEL_BYTES };
+        // Colour jobs' texels packed on the device as the host needs them:
+        // 8-bit pixels where asked, else f32 RGB.
+        let colour = matches!(job, Job::Image(Kernel::Render) | Job::Rects);
+        let pack = match (colour, options.pack_rgb8, options.read_texels) {
+            (true, true, _) => Some(Packing::Rgb8),
+            (true, false, false) => Some(Packing::RgbF32),
+            (false, ..) | (true, false, true) => None,
+        };
+        let texel_bytes = pack.map_or(TEXEL_BYTES, Packing::bytes);
         let (lists, key) = self.upload_job(work, res, kernel, out_texels, pack, &mut timings)?;
         // Each pipeline is built when a tile first needs it: the one-pass
         // shader for a tile's first try, the resumable one after it
@@ -138,7 +145,10 @@ impl Gpu<'_> {
                     }
                 };
                 let p = pipeline_for(&work, &mut timings)?;
-                let packing = res.pack.as_ref().filter(|_| pack).map(|p| (p, s));
+                let packing = pack.map(|k| {
+                    let p = res.pack[k.index()].as_ref().expect("bound by upload_job");
+                    (p, s, k)
+                });
                 self.submit_pass(
                     &mut res.slots[s],
                     p,
@@ -217,7 +227,7 @@ impl Gpu<'_> {
         res: &mut Resources,
         kernel: Kernel,
         out_texels: u64,
-        pack: bool,
+        pack: Option<Packing>,
         timings: &mut Timings,
     ) -> Result<(Lists, PipelineKey), GpuError> {
         let Work {
@@ -287,8 +297,8 @@ impl Gpu<'_> {
                 state_bytes,
             )?;
         }
-        if pack {
-            self.bind_pack(res, out_texels)?;
+        if let Some(packing) = pack {
+            self.bind_pack(res, packing, out_texels)?;
         }
         timings.add("upload", upload_start.elapsed());
         timings.count(UPLOADED_BYTES, uploaded);

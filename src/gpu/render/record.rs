@@ -6,7 +6,7 @@ use std::time::Duration;
 
 use ash::vk;
 
-use super::job::{GpuRenderOptions, Job, TileRect, TileWork, PACKED_BYTES, TEXEL_BYTES};
+use super::job::{GpuRenderOptions, Job, Packing, TileRect, TileWork, TEXEL_BYTES};
 use super::resources::{Gpu, Slot};
 use crate::gpu::bindings::Lists;
 use crate::gpu::commands::memory_barrier;
@@ -55,7 +55,10 @@ impl Gpu<'_> {
         (lists, job): (Lists, Job),
         work: TileWork,
         out_texels: u64,
-        (target, pack): (Option<FrameTarget>, Option<(&SmallPipeline, usize)>),
+        (target, pack): (
+            Option<FrameTarget>,
+            Option<(&SmallPipeline, usize, Packing)>,
+        ),
     ) -> Result<(), GpuError> {
         let shared = &self.shared;
         let device = &shared.device;
@@ -195,14 +198,14 @@ impl Gpu<'_> {
         }
     }
 
-    /// Records the copy of the tile's texels (packed to 8-bit pixels first
-    /// where `pack`) into the slot's readback buffer, and row by row into
+    /// Records the copy of the tile's texels (packed first where `pack`:
+    /// 8-bit pixels or f32 RGB) into the slot's readback buffer, and row by row into
     /// the window's image where there is one, then the barrier before the
     /// host reads.
     fn record_readback(
         &self,
         slot: &Slot,
-        pack: Option<(&SmallPipeline, usize)>,
+        pack: Option<(&SmallPipeline, usize, Packing)>,
         texels: u64,
         target: Option<FrameTarget>,
         rect: TileRect,
@@ -212,9 +215,10 @@ impl Gpu<'_> {
         // SAFETY: as `record_dispatch`.
         unsafe {
             let (read_from, size) = match pack {
-                Some((pipeline, set)) => {
-                    // The tile's texels as 8-bit pixels: a quarter of the
-                    // bytes cross to the host.
+                Some((pipeline, set, packing)) => {
+                    // The tile's texels as the file needs them: a quarter
+                    // (8-bit) or three quarters (f32 RGB) of the bytes
+                    // cross to the host.
                     let groups = texels.div_ceil(PACK_GROUP).min(u64::from(u32::MAX)) as u32;
                     pipeline.dispatch(slot.command, set, [groups, 1]);
                     memory_barrier(
@@ -229,7 +233,7 @@ impl Gpu<'_> {
                             vk::AccessFlags::TRANSFER_READ,
                         ),
                     );
-                    (slot.packed.get().raw, texels * PACKED_BYTES)
+                    (slot.packed.get().raw, texels * packing.bytes())
                 }
                 None => (slot.output.get().raw, bytes),
             };

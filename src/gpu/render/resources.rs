@@ -9,11 +9,9 @@ use ash::vk;
 use gpu_allocator::MemoryLocation;
 
 use super::job::{
-    B_FRAME, B_MATERIALS, B_OUTPUT, B_SKIPS, B_STATE, B_STATUS, B_TILE, PACKED_BYTES, SLOTS,
-    TEXEL_BYTES,
+    Packing, B_FRAME, B_MATERIALS, B_OUTPUT, B_SKIPS, B_STATE, B_STATUS, B_TILE, SLOTS, TEXEL_BYTES,
 };
 
-pub const PACK_WGSL: &str = include_str!("../../../shaders/pack.wgsl");
 use super::plan::{ListForms, Split, Upload};
 use crate::gpu::bindings::{Lists, BINDINGS};
 use crate::gpu::buffer::Buffer;
@@ -132,7 +130,7 @@ pub(super) struct Slot {
     pub(super) tile: Buffer,
     pub(super) status: Buffer,
     pub(super) output: Reusable,
-    /// The output's texels as 8-bit pixels (`GpuRenderOptions::pack_rgb8`).
+    /// The output's texels as the host reads them (`Packing`).
     pub(super) packed: Reusable,
     pub(super) readback: Reusable,
     pub(super) state: Reusable,
@@ -154,9 +152,9 @@ pub(super) struct Resources {
     pub(super) staging: Reusable,
     pub(super) upload_command: vk::CommandBuffer,
     pub(super) upload_fence: vk::Fence,
-    /// `shaders/pack.wgsl`, one set per slot; built when a render first
-    /// asks for 8-bit pixels.
-    pub(super) pack: Option<SmallPipeline>,
+    /// Each `Packing`'s shader, one set per slot; built when a render
+    /// first packs so.
+    pub(super) pack: [Option<SmallPipeline>; 2],
     /// Held for its drop: frees the command buffers, sets and fences.
     pub(super) _pools: Pools,
 }
@@ -250,7 +248,7 @@ impl Gpu<'_> {
             ),
             upload_command,
             upload_fence,
-            pack: None,
+            pack: [None, None],
             _pools: pools,
         })
     }
@@ -342,31 +340,34 @@ impl Gpu<'_> {
         Ok(uploaded)
     }
 
-    /// Points each slot's pack set at its output (`out_texels` texels) and
-    /// its 8-bit pixels, building the pack pipeline the first time.
-    pub(super) fn bind_pack(&self, res: &mut Resources, out_texels: u64) -> Result<(), GpuError> {
-        if res.pack.is_none() {
-            res.pack = Some(SmallPipeline::new(
+    /// Points each slot's `packing` set at its output (`out_texels`
+    /// texels) and its packed texels, building that shader the first time.
+    pub(super) fn bind_pack(
+        &self,
+        res: &mut Resources,
+        packing: Packing,
+        out_texels: u64,
+    ) -> Result<(), GpuError> {
+        let built = &mut res.pack[packing.index()];
+        if built.is_none() {
+            let (what, wgsl, entry) = packing.shader();
+            *built = Some(SmallPipeline::new(
                 self.shared,
-                "pack",
-                PACK_WGSL,
-                c"pack",
+                what,
+                wgsl,
+                entry,
                 2,
                 SLOTS as u32,
             )?);
         }
-        let pack = res.pack.as_ref().expect("just built");
+        let pack = built.as_ref().expect("just built");
+        let bytes = out_texels * packing.bytes();
         for (i, slot) in res.slots.iter_mut().enumerate() {
-            let packed = slot
-                .packed
-                .at_least(self.shared, out_texels * PACKED_BYTES)?;
+            let packed = slot.packed.at_least(self.shared, bytes)?;
             let output = slot.output.get();
             pack.bind(
                 i,
-                &[
-                    (output.raw, out_texels * TEXEL_BYTES),
-                    (packed.raw, out_texels * PACKED_BYTES),
-                ],
+                &[(output.raw, out_texels * TEXEL_BYTES), (packed.raw, bytes)],
             );
         }
         Ok(())
