@@ -22,6 +22,8 @@ fn main() {
         cpu_f64: true,
         device: None,
         uniform_lists: true,
+        // This binary is the bench harness, not glint.
+        end_to_end: None,
     };
     let report = run(&options, &mut |line| eprintln!("{line}")).expect("benchmark runs");
     println!("{}", report.to_markdown());

@@ -109,8 +109,9 @@ pub enum Error {
          the result may be wrong, so nothing was written. Please report this with the scene"
     )]
     Validation(u32),
-    /// `glint bench embree`'s external harness failed.
-    #[error("the Embree harness {harness} failed on {scene}: {reason}")]
+    /// A program a benchmark runs failed: `glint bench embree`'s Embree
+    /// harness, or glint itself for `glint bench`'s end-to-end times.
+    #[error("{harness} failed on {scene}: {reason}")]
     Harness {
         /// The harness program.
         harness: PathBuf,

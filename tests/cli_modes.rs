@@ -135,6 +135,48 @@ fn bench_plots_render_time_against_primitives() {
     );
 }
 
+/// `glint bench`'s end-to-end column times `glint render SCENE out.jpg`
+/// as a process on each backend it runs: a time in milliseconds;
+/// `--no-end-to-end` leaves it out.
+#[test]
+fn bench_times_the_render_command_end_to_end() {
+    let d = tmp();
+    let scene = repo_path("scenes/showcase.scene").display().to_string();
+    let mut args = vec!["bench", "--no-gpu", "--repeat", "1", scene.as_str()];
+    args.extend(SMALL);
+    let o = glint(&args, d.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let out = stdout(&o);
+    let row = out
+        .lines()
+        .find(|l| l.starts_with("| showcase |"))
+        .unwrap_or_else(|| panic!("no showcase row: {out}"));
+    let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+    let number = |cell: &str, after: &str| -> f64 {
+        let rest = cell
+            .strip_prefix(after)
+            .unwrap_or_else(|| panic!("{cell:?}"));
+        let first = rest.split_whitespace().next().expect("a number");
+        first.parse().unwrap_or_else(|_| panic!("{cell:?}"))
+    };
+    assert!(number(cells[7], "") > 0.0, "{row}");
+    assert!(number(cells[9], "f32 ") > 0.0, "{row}");
+    assert!(
+        stderr(&o).contains("showcase: f32 end to end"),
+        "{}",
+        stderr(&o)
+    );
+    args.push("--no-end-to-end");
+    let o = glint(&args, d.path());
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    let row = stdout(&o)
+        .lines()
+        .find(|l| l.starts_with("| showcase |"))
+        .map(str::to_string)
+        .expect("a row");
+    assert!(row.trim_end().ends_with("| - |"), "{row}");
+}
+
 #[test]
 fn frames_are_numbered_and_split_by_range() {
     let d = tmp();

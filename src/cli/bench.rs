@@ -210,6 +210,11 @@ pub struct SceneArgs {
     /// backend, into this file (.svg, or .png drawn by glint itself).
     #[arg(long, value_name = "FILE")]
     plot: Option<PathBuf>,
+    /// Leave out the end-to-end column (`glint render SCENE out.jpg` as a
+    /// process on each backend, start to file written, after one untimed
+    /// run that warms the pipeline cache).
+    #[arg(long)]
+    no_end_to_end: bool,
 }
 
 pub fn run(args: BenchArgs) -> anyhow::Result<ExitCode> {
@@ -335,6 +340,13 @@ fn run_scenes(args: SceneArgs) -> anyhow::Result<ExitCode> {
         cpu_f64: !args.timed.no_cpu && args.f64,
         device: args.timed.device(),
         uniform_lists: !args.timed.storage_lists,
+        end_to_end: match args.no_end_to_end {
+            true => None,
+            false => Some(
+                std::env::current_exe()
+                    .context("cannot find glint's own binary for the end-to-end column")?,
+            ),
+        },
     };
     if let Some(plot) = &args.plot {
         // Before the work, not after it: a bad path fails in a second.

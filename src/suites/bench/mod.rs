@@ -4,12 +4,14 @@
 //! specialised shader against the generic one (`specialize`, `glint bench
 //! specialize`), glint against an Embree renderer of the same spec
 //! (`embree`, `glint bench embree`), and what each sampler's error and time
-//! come to (`samplers`, `glint bench samplers`). `glint accuracy` (src/accuracy.rs)
+//! come to (`samplers`, `glint bench samplers`). `process` times the glint
+//! binary end to end for `glint bench`'s last column. `glint accuracy` (src/accuracy.rs)
 //! measures error against time.
 
 mod common;
 mod embree;
 mod hard;
+mod process;
 mod samplers;
 mod scenes;
 mod specialize;

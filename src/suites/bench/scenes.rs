@@ -8,6 +8,7 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use super::common::{base_options, repeat, scene_name, Stat};
+use super::process::{end_to_end, Via};
 use crate::bvh::Bvh;
 use crate::cpu::Precision;
 use crate::gpu::DeviceSelector;
@@ -38,6 +39,10 @@ pub struct BenchOptions {
     pub device: Option<DeviceSelector>,
     /// `GpuRenderOptions::uniform_lists`.
     pub uniform_lists: bool,
+    /// The glint binary to time end to end (`glint render SCENE out.jpg`
+    /// on each backend, process start to file written); None: no such
+    /// column (`cargo bench`, whose own binary is not glint).
+    pub end_to_end: Option<PathBuf>,
 }
 
 /// One scene's measurements.
@@ -74,6 +79,10 @@ pub struct SceneResult {
     pub cpu_f32_time: Option<Stat>,
     /// As `cpu_f32_time`, for f64.
     pub cpu_f64_time: Option<Stat>,
+    /// Per backend ("GPU", "f32", "f64"), `glint render SCENE out.jpg` as
+    /// a process, from its start to the file written
+    /// (`BenchOptions::end_to_end`).
+    pub end_to_end: Vec<(&'static str, Stat)>,
 }
 
 /// What `glint bench` measured, and on what.
@@ -139,6 +148,11 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
     let cpu_f32 = options.cpu_f32.then(|| cpu(Precision::F32)).transpose()?;
     let cpu_f64 = options.cpu_f64.then(|| cpu(Precision::F64)).transpose()?;
     let mut pipelines = Duration::ZERO;
+    // Where the end-to-end runs write their JPEG.
+    let dir = tempfile::tempdir().map_err(|e| Error::WriteFile {
+        path: std::env::temp_dir(),
+        error: e,
+    })?;
     for path in &options.scenes {
         let scene = read_scene(path)?;
         let name = scene_name(path);
@@ -159,6 +173,7 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
             cpu_f32_time: None,
             cpu_f64_time: None,
             rays: None,
+            end_to_end: Vec::new(),
         };
         if let Some(r) = &gpu {
             pipelines += r.prepare_pipeline(&scene)?;
@@ -215,12 +230,34 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
                 progress(&format!("{name}: {} {:.1} ms", r.name(), ms(*slot)));
             }
         }
+        if let Some(glint) = &options.end_to_end {
+            for (on, via) in [
+                (gpu.is_some(), Via::Gpu),
+                (cpu_f32.is_some(), Via::CpuF32),
+                (cpu_f64.is_some(), Via::CpuF64),
+            ] {
+                if on {
+                    let t = end_to_end(glint, path, via, options, dir.path(), n)?;
+                    progress(&format!(
+                        "{name}: {} end to end {:.1} ms",
+                        via.label(),
+                        ms(Some(t))
+                    ));
+                    result.end_to_end.push((via.label(), t));
+                }
+            }
+        }
         report.scenes.push(result);
     }
     if gpu.is_some() {
         report.pipeline_build = Some(pipelines);
     }
     Ok(report)
+}
+
+/// The end-to-end medians as `pack`'s cells take them.
+fn end_to_end_ms(times: &[(&'static str, Stat)]) -> Vec<(&'static str, Duration)> {
+    times.iter().map(|(l, t)| (*l, t.median)).collect()
 }
 
 fn ms(s: Option<Stat>) -> f64 {
@@ -313,16 +350,24 @@ impl BenchReport {
                 self.pipeline_build.unwrap_or_default().as_secs_f64() * 1e3
             );
         }
+        if self.scenes.iter().any(|s| !s.end_to_end.is_empty()) {
+            let _ = writeln!(
+                out,
+                "end to end: `glint render SCENE out.jpg` as a process on each backend, from its \
+                 start to the file written (scene read, device, cached pipeline, upload, render, \
+                 encode, write), median after one untimed run"
+            );
+        }
         let _ = writeln!(out);
         let _ = writeln!(
             out,
-            "| scene | primitives | rays | BVH build | pack, once | GPU render | CPU f32 | CPU f64 |"
+            "| scene | primitives | rays | BVH build | pack, once | GPU render | CPU f32 | CPU f64 | end to end, .jpg |"
         );
-        let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|---:|---:|");
+        let _ = writeln!(out, "|---|---:|---:|---:|---:|---:|---:|---:|---:|");
         for s in &self.scenes {
             let _ = writeln!(
                 out,
-                "| {} | {} | {} | {} | {} | {} | {} | {} |",
+                "| {} | {} | {} | {} | {} | {} | {} | {} | {} |",
                 s.name,
                 s.primitives,
                 s.rays.map_or_else(|| "-".into(), |r| r.to_string()),
@@ -330,7 +375,8 @@ impl BenchReport {
                 pack(&s.pack),
                 gpu_cell(s.gpu, s.gpu_time, s.rays),
                 cpu_cell(s.cpu_f32, s.cpu_f32_time, s.rays),
-                cpu_cell(s.cpu_f64, s.cpu_f64_time, s.rays)
+                cpu_cell(s.cpu_f64, s.cpu_f64_time, s.rays),
+                pack(&end_to_end_ms(&s.end_to_end))
             );
         }
         out
