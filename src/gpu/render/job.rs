@@ -18,7 +18,7 @@ pub(super) const TEXEL_BYTES: u64 = 16;
 /// the host: what the file needs, no padding.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub(super) enum Packing {
-    /// R, G, B, 255 in one `u32` (`shaders/pack.wgsl`; `pack_rgb8`).
+    /// R, G, B bytes, tightly packed (`shaders/pack.wgsl`; `pack_rgb8`).
     Rgb8,
     /// f32 R, G, B (`shaders/pack_float.wgsl`).
     RgbF32,
@@ -28,8 +28,22 @@ impl Packing {
     /// Bytes a texel packed.
     pub(super) fn bytes(self) -> u64 {
         match self {
-            Packing::Rgb8 => 4,
+            Packing::Rgb8 => 3,
             Packing::RgbF32 => 12,
+        }
+    }
+
+    /// Bytes `texels` packed take on the device: whole words.
+    pub(super) fn buffer_bytes(self, texels: u64) -> u64 {
+        (texels * self.bytes()).next_multiple_of(4)
+    }
+
+    /// Invocations of its shader for `texels`: one a word (8-bit) or a
+    /// texel (f32).
+    pub(super) fn invocations(self, texels: u64) -> u64 {
+        match self {
+            Packing::Rgb8 => self.buffer_bytes(texels) / 4,
+            Packing::RgbF32 => texels,
         }
     }
 
@@ -96,7 +110,7 @@ pub struct GpuRenderOptions {
     /// A tile's first pass without pixel state (`DriverProfile::one_pass_first`).
     pub one_pass_first: bool,
     /// Colour renders: pack each tile's texels into 8-bit pixels on the
-    /// device (`shaders/pack.wgsl`), so the host reads 4 bytes a pixel,
+    /// device (`shaders/pack.wgsl`), so the host reads 3 bytes a pixel,
     /// and hand back `Image::Rgb8`. Otherwise colour renders pack f32 RGB
     /// (12 bytes a pixel, `shaders/pack_float.wgsl`).
     pub pack_rgb8: bool,
@@ -188,6 +202,17 @@ pub(super) fn place_tile<S, T>(
         for (dst, t) in image[start..start + w].iter_mut().zip(src) {
             *dst = f(t);
         }
+    }
+}
+
+/// `place_tile` for texels that are already the image's pixels: each row
+/// copied whole.
+pub(super) fn place_rows<T: Copy>(rect: TileRect, texels: &[T], width: usize, image: &mut [T]) {
+    let [x0, y0] = rect.origin.map(|v| v as usize);
+    let w = rect.size[0] as usize;
+    for (row, src) in texels.chunks_exact(w).enumerate() {
+        let start = (y0 + row) * width + x0;
+        image[start..start + w].copy_from_slice(src);
     }
 }
 

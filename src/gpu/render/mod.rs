@@ -31,7 +31,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
-use job::{place_tile, tile_edge, tiles, Job, TileRect};
+use job::{place_rows, place_tile, tile_edge, tiles, Job, TileRect};
 pub use job::{tile_texels, GpuRenderOptions, DEFAULT_PASS_BUDGET, RESUMABLE_REDOS};
 use passes::Work;
 use plan::{capped, key, plan_lists, scene_uploads};
@@ -298,12 +298,12 @@ impl GpuRenderer {
             frame: None,
         };
         if options.pack_rgb8 {
-            // R, G, B, 255 per texel (`shaders/pack.wgsl`).
+            // R, G, B per texel, tightly packed (`shaders/pack.wgsl`): each
+            // row is copied as it is.
             let mut bytes = vec![0u8; count * 3];
             let pixels: &mut [[u8; 3]] = bytemuck::cast_slice_mut(&mut bytes);
             let timings = self.run(work, progress, &mut |rect, read| {
-                let texels: &[[u8; 4]] = bytemuck::cast_slice(read);
-                place_tile(rect, texels, width, pixels, |t| [t[0], t[1], t[2]])
+                place_rows(rect, bytemuck::cast_slice(read), width, pixels)
             })?;
             let image = image::RgbImage::from_raw(camera.width, camera.height, bytes)
                 .expect("pixel count matches width * height");
@@ -317,8 +317,7 @@ impl GpuRenderer {
                 let rgba = |t: &[f32; 4]| [t[0], t[1], t[2]];
                 place_tile(rect, bytemuck::cast_slice(bytes), width, &mut pixels, rgba)
             } else {
-                let rgb = |t: &[f32; 3]| *t;
-                place_tile(rect, bytemuck::cast_slice(bytes), width, &mut pixels, rgb)
+                place_rows(rect, bytemuck::cast_slice(bytes), width, &mut pixels)
             }
         })?;
         let fb = Framebuffer {

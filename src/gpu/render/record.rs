@@ -216,10 +216,13 @@ impl Gpu<'_> {
         unsafe {
             let (read_from, size) = match pack {
                 Some((pipeline, set, packing)) => {
-                    // The tile's texels as the file needs them: a quarter
-                    // (8-bit) or three quarters (f32 RGB) of the bytes
-                    // cross to the host.
-                    let groups = texels.div_ceil(PACK_GROUP).min(u64::from(u32::MAX)) as u32;
+                    // The tile's texels as the file needs them: 3 (8-bit)
+                    // or 12 (f32 RGB) bytes a pixel cross to the host, not
+                    // a texel's 16.
+                    let groups = packing
+                        .invocations(texels)
+                        .div_ceil(PACK_GROUP)
+                        .min(u64::from(u32::MAX)) as u32;
                     pipeline.dispatch(slot.command, set, [groups, 1]);
                     memory_barrier(
                         device,
@@ -233,7 +236,7 @@ impl Gpu<'_> {
                             vk::AccessFlags::TRANSFER_READ,
                         ),
                     );
-                    (slot.packed.get().raw, texels * packing.bytes())
+                    (slot.packed.get().raw, packing.buffer_bytes(texels))
                 }
                 None => (slot.output.get().raw, bytes),
             };

@@ -361,7 +361,7 @@ impl Gpu<'_> {
             )?);
         }
         let pack = built.as_ref().expect("just built");
-        let bytes = out_texels * packing.bytes();
+        let bytes = packing.buffer_bytes(out_texels);
         for (i, slot) in res.slots.iter_mut().enumerate() {
             let packed = slot.packed.at_least(self.shared, bytes)?;
             let output = slot.output.get();
