@@ -55,7 +55,8 @@ only=(--no-gpu)
 [[ " ${backend[*]} " == *" gpu "* ]] && only=(--no-cpu)
 : >"$work/f"
 for _ in $(seq "$runs"); do
-    one=$("$glint" bench "$work/moving.scene" --width 1280 --height 720 "${only[@]}" --repeat 5 2>&1 |
+    one=$("$glint" bench "$work/moving.scene" --width 1280 --height 720 "${only[@]}" --repeat 5 \
+        --no-end-to-end 2>&1 |
         awk '/^moving: / {print $(NF-1); exit}')
     rm -rf "$work/frames"
     start=$(date +%s.%N)

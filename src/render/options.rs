@@ -65,7 +65,7 @@ pub struct RenderOptions {
     pub gpu: GpuRenderOptions,
     /// What the image is for: float values, or the 8-bit pixels of a PNG,
     /// JPEG or PPM, converted where they are made (by the device's pack
-    /// shader, which then reads back 4 bytes a pixel instead of 12).
+    /// shader, which then reads back 3 bytes a pixel instead of 12).
     pub pixels: PixelFormat,
 }
 

@@ -25,6 +25,18 @@ pub(super) enum Packing {
 }
 
 impl Packing {
+    /// How `job`'s texels cross to the host: colour jobs' packed on the
+    /// device, 8-bit pixels where `options` ask, else f32 RGB (unless
+    /// `read_texels`); probes' as they are.
+    pub(super) fn of(job: Job, options: &GpuRenderOptions) -> Option<Packing> {
+        let colour = matches!(job, Job::Image(Kernel::Render) | Job::Rects);
+        match (colour, options.pack_rgb8, options.read_texels) {
+            (true, true, _) => Some(Packing::Rgb8),
+            (true, false, false) => Some(Packing::RgbF32),
+            (false, ..) | (true, false, true) => None,
+        }
+    }
+
     /// Bytes a texel packed.
     pub(super) fn bytes(self) -> u64 {
         match self {

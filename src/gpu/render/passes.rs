@@ -75,14 +75,7 @@ impl Gpu<'_> {
         let mut timings = Timings::default();
         let tile_edge = tile_edge(options.tile_size);
         let (kernel, tiles, out_texels) = job_tiles(job, scene, camera, options, rects);
-        // Colour jobs' texels packed on the device as the host needs them:
-        // 8-bit pixels where asked, else f32 RGB.
-        let colour = matches!(job, Job::Image(Kernel::Render) | Job::Rects);
-        let pack = match (colour, options.pack_rgb8, options.read_texels) {
-            (true, true, _) => Some(Packing::Rgb8),
-            (true, false, false) => Some(Packing::RgbF32),
-            (false, ..) | (true, false, true) => None,
-        };
+        let pack = Packing::of(job, options);
         let texel_bytes = pack.map_or(TEXEL_BYTES, Packing::bytes);
         let (lists, key) = self.upload_job(work, res, kernel, out_texels, pack, &mut timings)?;
         // Each pipeline is built when a tile first needs it: the one-pass

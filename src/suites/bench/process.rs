@@ -12,8 +12,24 @@ use std::process::{Command, Stdio};
 use std::time::Instant;
 
 use super::common::Stat;
-use super::scenes::BenchOptions;
+use crate::gpu::DeviceSelector;
 use crate::Error;
+
+/// What every timed process is given besides its scene and backend.
+pub(crate) struct Setup<'a> {
+    /// The glint binary.
+    pub(crate) glint: &'a Path,
+    /// Image width in pixels.
+    pub(crate) width: u32,
+    /// Image height in pixels.
+    pub(crate) height: u32,
+    /// `--device` for the GPU runs.
+    pub(crate) device: Option<&'a DeviceSelector>,
+    /// False: `--storage-lists` for the GPU runs.
+    pub(crate) uniform_lists: bool,
+    /// Where each run writes its JPEG.
+    pub(crate) dir: &'a Path,
+}
 
 /// Which renderer a timed process uses, by its `glint render` flags.
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
@@ -37,35 +53,29 @@ impl Via {
     }
 }
 
-/// The median of `n` runs of `glint` rendering `scene` to a JPEG in `dir`
-/// through `via`, after one untimed run; an error naming the command when a
-/// run fails or writes no file.
-pub(crate) fn end_to_end(
-    glint: &Path,
-    scene: &Path,
-    via: Via,
-    options: &BenchOptions,
-    dir: &Path,
-    n: usize,
-) -> Result<Stat, Error> {
-    let out = dir.join("end-to-end.jpg");
+/// The median of `n` runs of glint rendering `scene` to a JPEG through
+/// `via`, after one untimed run; an error naming the command when a run
+/// fails or writes no file.
+pub(crate) fn end_to_end(setup: &Setup, scene: &Path, via: Via, n: usize) -> Result<Stat, Error> {
+    let glint = setup.glint;
+    let out = setup.dir.join("end-to-end.jpg");
     let mut command = Command::new(glint);
     command
         .arg("render")
         .arg(scene)
         .arg(&out)
-        .args(["--width", &options.width.to_string()])
-        .args(["--height", &options.height.to_string()])
+        .args(["--width", &setup.width.to_string()])
+        .args(["--height", &setup.height.to_string()])
         .stdin(Stdio::null())
         .stdout(Stdio::null())
         .stderr(Stdio::piped());
     match via {
         Via::Gpu => {
             command.args(["--backend", "gpu"]);
-            if let Some(d) = &options.device {
+            if let Some(d) = setup.device {
                 command.args(["--device", &d.to_string()]);
             }
-            if !options.uniform_lists {
+            if !setup.uniform_lists {
                 command.arg("--storage-lists");
             }
         }

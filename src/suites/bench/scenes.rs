@@ -8,7 +8,7 @@ use std::path::PathBuf;
 use std::time::{Duration, Instant};
 
 use super::common::{base_options, repeat, scene_name, Stat};
-use super::process::{end_to_end, Via};
+use super::process::{end_to_end, Setup, Via};
 use crate::bvh::Bvh;
 use crate::cpu::Precision;
 use crate::gpu::DeviceSelector;
@@ -237,7 +237,15 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
                 (cpu_f64.is_some(), Via::CpuF64),
             ] {
                 if on {
-                    let t = end_to_end(glint, path, via, options, dir.path(), n)?;
+                    let setup = Setup {
+                        glint,
+                        width: options.width,
+                        height: options.height,
+                        device: options.device.as_ref(),
+                        uniform_lists: options.uniform_lists,
+                        dir: dir.path(),
+                    };
+                    let t = end_to_end(&setup, path, via, n)?;
                     progress(&format!(
                         "{name}: {} end to end {:.1} ms",
                         via.label(),
