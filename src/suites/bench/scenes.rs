@@ -148,11 +148,28 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
     let cpu_f32 = options.cpu_f32.then(|| cpu(Precision::F32)).transpose()?;
     let cpu_f64 = options.cpu_f64.then(|| cpu(Precision::F64)).transpose()?;
     let mut pipelines = Duration::ZERO;
-    // Where the end-to-end runs write their JPEG.
-    let dir = tempfile::tempdir().map_err(|e| Error::WriteFile {
-        path: std::env::temp_dir(),
-        error: e,
-    })?;
+    // Where the end-to-end runs write their JPEG, made only for them.
+    let dir = options
+        .end_to_end
+        .as_ref()
+        .map(|_| tempfile::tempdir())
+        .transpose()
+        .map_err(|e| Error::WriteFile {
+            path: std::env::temp_dir(),
+            error: e,
+        })?;
+    let setup = options
+        .end_to_end
+        .as_deref()
+        .zip(dir.as_ref())
+        .map(|(glint, dir)| Setup {
+            glint,
+            width: options.width,
+            height: options.height,
+            device: options.device.as_ref(),
+            uniform_lists: options.uniform_lists,
+            dir: dir.path(),
+        });
     for path in &options.scenes {
         let scene = read_scene(path)?;
         let name = scene_name(path);
@@ -230,30 +247,9 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
                 progress(&format!("{name}: {} {:.1} ms", r.name(), ms(*slot)));
             }
         }
-        if let Some(glint) = &options.end_to_end {
-            for (on, via) in [
-                (gpu.is_some(), Via::Gpu),
-                (cpu_f32.is_some(), Via::CpuF32),
-                (cpu_f64.is_some(), Via::CpuF64),
-            ] {
-                if on {
-                    let setup = Setup {
-                        glint,
-                        width: options.width,
-                        height: options.height,
-                        device: options.device.as_ref(),
-                        uniform_lists: options.uniform_lists,
-                        dir: dir.path(),
-                    };
-                    let t = end_to_end(&setup, path, via, n)?;
-                    progress(&format!(
-                        "{name}: {} end to end {:.1} ms",
-                        via.label(),
-                        ms(Some(t))
-                    ));
-                    result.end_to_end.push((via.label(), t));
-                }
-            }
+        if let Some(setup) = &setup {
+            let on = [gpu.is_some(), cpu_f32.is_some(), cpu_f64.is_some()];
+            result.end_to_end = time_end_to_end(setup, path, on, n, progress)?;
         }
         report.scenes.push(result);
     }
@@ -261,6 +257,31 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
         report.pipeline_build = Some(pipelines);
     }
     Ok(report)
+}
+
+/// `scene` rendered by glint as a process on each backend `on` says (GPU,
+/// f32, f64), `n` times after one untimed run; each backend's median.
+fn time_end_to_end(
+    setup: &Setup,
+    scene: &std::path::Path,
+    on: [bool; 3],
+    n: usize,
+    progress: &mut dyn FnMut(&str),
+) -> Result<Vec<(&'static str, Stat)>, Error> {
+    let mut times = Vec::new();
+    for (on, via) in on.into_iter().zip([Via::Gpu, Via::CpuF32, Via::CpuF64]) {
+        if on {
+            let t = end_to_end(setup, scene, via, n)?;
+            let name = scene_name(scene);
+            progress(&format!(
+                "{name}: {} end to end {:.1} ms",
+                via.label(),
+                ms(Some(t))
+            ));
+            times.push((via.label(), t));
+        }
+    }
+    Ok(times)
 }
 
 /// The end-to-end medians as `pack`'s cells take them.
