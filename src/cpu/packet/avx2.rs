@@ -99,6 +99,152 @@ pub(super) fn children_avx2<const ANY_HIT: bool>(
     }
 }
 
+/// An octet's rays in the axis order `k` they share: origins along kx,
+/// ky, kz, and their shears.
+#[cfg(target_arch = "x86_64")]
+#[derive(Clone, Copy)]
+struct Octet {
+    o: [std::arch::x86_64::__m256; 3],
+    s: [std::arch::x86_64::__m256; 3],
+}
+
+#[cfg(target_arch = "x86_64")]
+impl Octet {
+    /// Octet `g`'s rays of `soa`, in the order `k`.
+    #[target_feature(enable = "avx2")]
+    #[inline]
+    fn load(soa: &Soa, k: [usize; 3], g: usize) -> Octet {
+        use std::arch::x86_64::*;
+        // SAFETY: `Lanes` is 64-byte aligned (32 would do here) and holds
+        // `WIDTH` f32, a multiple of eight, as the aligned loads at every
+        // eighth one need.
+        let load = |l: &Lanes| unsafe { _mm256_load_ps(l.0.as_ptr().add(8 * g)) };
+        let [kx, ky, kz] = k;
+        Octet {
+            o: [load(&soa.o[kx]), load(&soa.o[ky]), load(&soa.o[kz])],
+            s: [
+                load(&soa.shear[0]),
+                load(&soa.shear[1]),
+                load(&soa.shear[2]),
+            ],
+        }
+    }
+}
+
+/// The watertight test of one triangle against an octet's rays (`Octet`)
+/// and their limits `t_max`, `at(c, a)` giving corner `c` on the rays'
+/// axis `a` (kx, ky, kz): per ray `trace::hit_triangle`'s operations in
+/// its order on the same values (ordered compares as `cmplt` and `cmpgt`,
+/// unordered as `cmpne`). Gives the rays it hits, the scaled t, the
+/// determinant and the unscaled second and third barycentrics (t is
+/// `t_scaled / det`). A macro, as `box_entry_exit`, so that it expands
+/// inside its caller's `target_feature`.
+#[cfg(target_arch = "x86_64")]
+macro_rules! crossing {
+    ($rays:expr, $at:expr, $t_max:expr) => {{
+        let [ox, oy, oz] = $rays.o;
+        let [s0, s1, s2] = $rays.s;
+        let zero = _mm256_setzero_ps();
+        let p = |corner: usize, axis: usize| _mm256_set1_ps($at(corner, axis));
+        let a_z = _mm256_sub_ps(p(0, 2), oz);
+        let b_z = _mm256_sub_ps(p(1, 2), oz);
+        let c_z = _mm256_sub_ps(p(2, 2), oz);
+        let ax = _mm256_sub_ps(_mm256_sub_ps(p(0, 0), ox), _mm256_mul_ps(s0, a_z));
+        let ay = _mm256_sub_ps(_mm256_sub_ps(p(0, 1), oy), _mm256_mul_ps(s1, a_z));
+        let bx = _mm256_sub_ps(_mm256_sub_ps(p(1, 0), ox), _mm256_mul_ps(s0, b_z));
+        let by = _mm256_sub_ps(_mm256_sub_ps(p(1, 1), oy), _mm256_mul_ps(s1, b_z));
+        let cx = _mm256_sub_ps(_mm256_sub_ps(p(2, 0), ox), _mm256_mul_ps(s0, c_z));
+        let cy = _mm256_sub_ps(_mm256_sub_ps(p(2, 1), oy), _mm256_mul_ps(s1, c_z));
+        let u = _mm256_sub_ps(_mm256_mul_ps(cx, by), _mm256_mul_ps(cy, bx));
+        let v = _mm256_sub_ps(_mm256_mul_ps(ax, cy), _mm256_mul_ps(ay, cx));
+        let w = _mm256_sub_ps(_mm256_mul_ps(bx, ay), _mm256_mul_ps(by, ax));
+        let lt = |a, b| _mm256_cmp_ps::<_CMP_LT_OS>(a, b);
+        let gt = |a, b| _mm256_cmp_ps::<_CMP_GT_OS>(a, b);
+        let or = |a, b| _mm256_or_ps(a, b);
+        let and = |a, b| _mm256_and_ps(a, b);
+        let some_negative = or(or(lt(u, zero), lt(v, zero)), lt(w, zero));
+        let some_positive = or(or(gt(u, zero), gt(v, zero)), gt(w, zero));
+        let det = _mm256_add_ps(_mm256_add_ps(u, v), w);
+        let t_scaled = _mm256_add_ps(
+            _mm256_add_ps(
+                _mm256_mul_ps(u, _mm256_mul_ps(s2, a_z)),
+                _mm256_mul_ps(v, _mm256_mul_ps(s2, b_z)),
+            ),
+            _mm256_mul_ps(w, _mm256_mul_ps(s2, c_z)),
+        );
+        let end = _mm256_mul_ps($t_max, det);
+        let positive = and(gt(t_scaled, zero), lt(t_scaled, end));
+        let negative = and(lt(t_scaled, zero), gt(t_scaled, end));
+        let det_positive = gt(det, zero);
+        let inside = or(
+            and(det_positive, positive),
+            _mm256_andnot_ps(det_positive, negative),
+        );
+        let hit = _mm256_andnot_ps(
+            and(some_negative, some_positive),
+            and(_mm256_cmp_ps::<_CMP_NEQ_UQ>(det, zero), inside),
+        );
+        [hit, t_scaled, det, v, w]
+    }};
+}
+
+/// One triangle (`tri`, primitive `prim`) against the rays of octet `g`
+/// in `m8` that share the axis order `k`, eight at a time with AVX2: each
+/// ray `trace::hit_triangle`'s answer against its own nearest hit so far,
+/// to the bit, kept where nearer (as the single ray's primitive loop
+/// keeps it). Writes the rays' new hits and returns the bits of the rays
+/// that found one. For leaves that are no SIMD block (spheres among the
+/// triangles), whose triangles each ray tested alone.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+pub(super) fn hit_triangle_octet(
+    tri: &[glam::Vec3; 3],
+    prim: u32,
+    soa: &Soa,
+    (k, g, m8): ([usize; 3], usize, u32),
+    best: &mut [Hit<f32>; WIDTH],
+    best_t: &mut Lanes,
+) -> u32 {
+    use std::arch::x86_64::*;
+    let rays = Octet::load(soa, k, g);
+    // SAFETY: as `Octet::load`'s loads; the outputs are eight lanes each,
+    // written unaligned.
+    let t_max = unsafe { _mm256_load_ps(best_t.0.as_ptr().add(8 * g)) };
+    let [kx, ky, kz] = k;
+    let at = |corner: usize, axis: usize| tri[corner][[kx, ky, kz][axis]];
+    let [hit, t_scaled, det, v, w] = crossing!(rays, at, t_max);
+    if _mm256_movemask_ps(hit) as u32 & m8 == 0 {
+        return 0;
+    }
+    let inv_det = _mm256_div_ps(_mm256_set1_ps(1.0), det);
+    let t = _mm256_mul_ps(t_scaled, inv_det);
+    let keep = _mm256_and_ps(hit, _mm256_cmp_ps::<_CMP_LT_OS>(t, t_max));
+    let found = _mm256_movemask_ps(keep) as u32 & m8;
+    let mut out = [[0.0f32; 8]; 3];
+    for (out, x) in out
+        .iter_mut()
+        .zip([t, _mm256_mul_ps(v, inv_det), _mm256_mul_ps(w, inv_det)])
+    {
+        // SAFETY: eight f32 written unaligned into eight.
+        unsafe { _mm256_storeu_ps(out.as_mut_ptr(), x) };
+    }
+    let mut each = found;
+    while each != 0 {
+        let i = each.trailing_zeros() as usize;
+        each &= each - 1;
+        let r = 8 * g + i;
+        best[r] = Hit {
+            t: out[0][i],
+            prim,
+            b1: out[1][i],
+            b2: out[2][i],
+        };
+        best_t.0[r] = out[0][i];
+    }
+    found << (8 * g)
+}
+
 /// A leaf block's triangles against the rays of octet `g` in `m8` that
 /// share the axis order `k`, eight rays at a time with AVX2: per ray
 /// `wide::hit_block_f32`'s operations in its order on the same values (the
@@ -127,19 +273,13 @@ pub(super) fn hit_block_octet(
     let mut b1_out = [0.0f32; 8];
     let mut b2_out = [0.0f32; 8];
     let mut which = [0i32; 8];
+    let rays = Octet::load(soa, k, g);
     // SAFETY: `Lanes` is 64-byte aligned (32 would do here) and holds
-    // `WIDTH` f32, a multiple of eight, as the aligned loads at every
-    // eighth one need; the outputs are eight lanes each, written
+    // `WIDTH` f32, a multiple of eight, as the aligned load at every
+    // eighth one needs; the outputs are eight lanes each, written
     // unaligned; the rest is arithmetic on registers.
     let found = unsafe {
-        let load = |l: &Lanes| _mm256_load_ps(l.0.as_ptr().add(8 * g));
-        let (ox, oy, oz) = (load(&soa.o[kx]), load(&soa.o[ky]), load(&soa.o[kz]));
-        let (s0, s1, s2) = (
-            load(&soa.shear[0]),
-            load(&soa.shear[1]),
-            load(&soa.shear[2]),
-        );
-        let t_max = load(best_t);
+        let t_max = _mm256_load_ps(best_t.0.as_ptr().add(8 * g));
         let zero = _mm256_setzero_ps();
         let one = _mm256_set1_ps(1.0);
         let mut run_t = t_max;
@@ -151,51 +291,14 @@ pub(super) fn hit_block_octet(
             if lanes & 1 << j == 0 {
                 continue;
             }
-            let p = |axis: usize, corner: usize| _mm256_set1_ps(block.p[axis][corner][j]);
-            let a_z = _mm256_sub_ps(p(kz, 0), oz);
-            let b_z = _mm256_sub_ps(p(kz, 1), oz);
-            let c_z = _mm256_sub_ps(p(kz, 2), oz);
-            let ax = _mm256_sub_ps(_mm256_sub_ps(p(kx, 0), ox), _mm256_mul_ps(s0, a_z));
-            let ay = _mm256_sub_ps(_mm256_sub_ps(p(ky, 0), oy), _mm256_mul_ps(s1, a_z));
-            let bx = _mm256_sub_ps(_mm256_sub_ps(p(kx, 1), ox), _mm256_mul_ps(s0, b_z));
-            let by = _mm256_sub_ps(_mm256_sub_ps(p(ky, 1), oy), _mm256_mul_ps(s1, b_z));
-            let cx = _mm256_sub_ps(_mm256_sub_ps(p(kx, 2), ox), _mm256_mul_ps(s0, c_z));
-            let cy = _mm256_sub_ps(_mm256_sub_ps(p(ky, 2), oy), _mm256_mul_ps(s1, c_z));
-            let u = _mm256_sub_ps(_mm256_mul_ps(cx, by), _mm256_mul_ps(cy, bx));
-            let v = _mm256_sub_ps(_mm256_mul_ps(ax, cy), _mm256_mul_ps(ay, cx));
-            let w = _mm256_sub_ps(_mm256_mul_ps(bx, ay), _mm256_mul_ps(by, ax));
-            let lt = |a, b| _mm256_cmp_ps::<_CMP_LT_OS>(a, b);
-            let gt = |a, b| _mm256_cmp_ps::<_CMP_GT_OS>(a, b);
-            let or = |a, b| _mm256_or_ps(a, b);
-            let and = |a, b| _mm256_and_ps(a, b);
-            let some_negative = or(or(lt(u, zero), lt(v, zero)), lt(w, zero));
-            let some_positive = or(or(gt(u, zero), gt(v, zero)), gt(w, zero));
-            let det = _mm256_add_ps(_mm256_add_ps(u, v), w);
-            let t_scaled = _mm256_add_ps(
-                _mm256_add_ps(
-                    _mm256_mul_ps(u, _mm256_mul_ps(s2, a_z)),
-                    _mm256_mul_ps(v, _mm256_mul_ps(s2, b_z)),
-                ),
-                _mm256_mul_ps(w, _mm256_mul_ps(s2, c_z)),
-            );
-            let end = _mm256_mul_ps(t_max, det);
-            let positive = and(gt(t_scaled, zero), lt(t_scaled, end));
-            let negative = and(lt(t_scaled, zero), gt(t_scaled, end));
-            let det_positive = gt(det, zero);
-            let inside = or(
-                and(det_positive, positive),
-                _mm256_andnot_ps(det_positive, negative),
-            );
-            let hit = _mm256_andnot_ps(
-                and(some_negative, some_positive),
-                and(_mm256_cmp_ps::<_CMP_NEQ_UQ>(det, zero), inside),
-            );
+            let at = |corner: usize, axis: usize| block.p[[kx, ky, kz][axis]][corner][j];
+            let [hit, t_scaled, det, v, w] = crossing!(rays, at, t_max);
             if _mm256_movemask_ps(hit) as u32 & m8 == 0 {
                 continue;
             }
             let inv_det = _mm256_div_ps(one, det);
             let t = _mm256_mul_ps(t_scaled, inv_det);
-            let keep = and(hit, lt(t, run_t));
+            let keep = _mm256_and_ps(hit, _mm256_cmp_ps::<_CMP_LT_OS>(t, run_t));
             run_t = _mm256_blendv_ps(run_t, t, keep);
             run_b1 = _mm256_blendv_ps(run_b1, _mm256_mul_ps(v, inv_det), keep);
             run_b2 = _mm256_blendv_ps(run_b2, _mm256_mul_ps(w, inv_det), keep);

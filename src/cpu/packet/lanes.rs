@@ -1,7 +1,7 @@
 //! A packet's data: one f32 per ray in aligned lanes, the rays in SoA
 //! form, the per-node child results, and the packet's rays themselves.
 
-use crate::cpu::trace::{ray_with_inverse, CpuScene, Ray, Sphere};
+use crate::cpu::trace::{CpuScene, Ray, Sphere};
 use crate::cpu::Real;
 use glam::{BVec4A, Vec3, Vec4};
 
@@ -193,6 +193,8 @@ pub(super) type Entry = (u32, u32, f32);
 #[derive(Clone, Copy)]
 pub(super) struct Query<'a> {
     pub(super) rays: &'a [Ray<f32>; WIDTH],
+    /// The same rays by component.
+    pub(super) soa: &'a Soa,
     pub(super) active: u32,
     pub(super) t_max: f32,
 }
@@ -220,35 +222,124 @@ pub(super) fn prefetch<T>(items: &[T]) {
     let _ = items;
 }
 
-/// `trace::make_ray` (at time 0) for a packet's rays, their divisions four
-/// rays at a time: per lane the same operations on the same values, so
-/// each ray is `make_ray`'s to the bit.
+/// Three components of one vector per ray.
+pub(super) type V3s = [Lanes; 3];
+
+/// `v`'s lane `i` as a vector.
 #[inline(always)]
-pub(super) fn make_rays(origins: &[Vec3; WIDTH], dirs: &[Vec3; WIDTH]) -> [Ray<f32>; WIDTH] {
-    let mut inv = [Lanes([0.0; WIDTH]); 3];
-    for (axis, inv) in inv.iter_mut().enumerate() {
-        for h in 0..QUADS {
-            let d = Vec4::from_array(std::array::from_fn(|i| dirs[4 * h + i][axis]));
-            // `trace::safe_dir`, lane by lane.
-            let sign = Vec4::select(d.cmpge(Vec4::ZERO), Vec4::ONE, Vec4::NEG_ONE);
-            let tiny = d.abs().cmplt(Vec4::splat(f32::MIN_DIR));
-            let safe = Vec4::select(tiny, sign * Vec4::splat(f32::MIN_DIR), d);
-            inv.set_quad(h, Vec4::ONE / safe);
+pub(super) fn lane(v: &V3s, i: usize) -> Vec3 {
+    Vec3::new(v[0].0[i], v[1].0[i], v[2].0[i])
+}
+
+/// Sets lane `i` of `v`.
+#[inline(always)]
+pub(super) fn set_lane(v: &mut V3s, i: usize, x: Vec3) {
+    for (c, v) in v.iter_mut().enumerate() {
+        v.0[i] = x[c];
+    }
+}
+
+/// A packet's rays, each whole (for the tests a ray takes alone) and by
+/// component (for those that take them together).
+pub(super) struct RayPacket {
+    pub(super) rays: [Ray<f32>; WIDTH],
+    pub(super) soa: Soa,
+}
+
+/// `trace::make_ray` (at time 0) for a packet's rays, given by lane, in
+/// loops over the lanes that fill whole registers: per lane the same
+/// operations on the same values (`safe_dir`'s, `ray_with_inverse`'s axis
+/// choice and shear), so each ray is `make_ray`'s to the bit. Made one
+/// ray at a time, the axis choice's branches mispredicted on shadow rays
+/// and each ray paid two divisions alone.
+#[inline(always)]
+pub(super) fn make_rays(origins: &V3s, dirs: &V3s) -> RayPacket {
+    let zeros = [Lanes([0.0; WIDTH]); 3];
+    let mut soa = Soa {
+        o: *origins,
+        dir: *dirs,
+        inv: zeros,
+        shear: zeros,
+        k: [None; WIDTH / 8],
+    };
+    // Per ray its axes, kx | ky << 2 | kz << 4.
+    let mut axes = [0u32; WIDTH];
+    for (i, axes) in axes.iter_mut().enumerate() {
+        let d = [dirs[0].0[i], dirs[1].0[i], dirs[2].0[i]];
+        for (axis, &d) in d.iter().enumerate() {
+            // `trace::safe_dir`.
+            let sign = if d >= 0.0 { 1.0 } else { -1.0 };
+            let safe = if d.abs() < f32::MIN_DIR {
+                sign * f32::MIN_DIR
+            } else {
+                d
+            };
+            soa.inv[axis].0[i] = 1.0 / safe;
+        }
+        let a = [d[0].abs(), d[1].abs(), d[2].abs()];
+        let kz: u32 = if a[0] > a[1] && a[0] > a[2] {
+            0
+        } else if a[1] > a[2] {
+            1
+        } else {
+            2
+        };
+        let pick = |k: u32| {
+            if k == 0 {
+                d[0]
+            } else if k == 1 {
+                d[1]
+            } else {
+                d[2]
+            }
+        };
+        let dz = pick(kz);
+        let kx = if kz == 2 { 0 } else { kz + 1 };
+        let ky = if kx == 2 { 0 } else { kx + 1 };
+        let (kx, ky) = if dz < 0.0 { (ky, kx) } else { (kx, ky) };
+        let sz = 1.0 / dz;
+        soa.shear[0].0[i] = pick(kx) * sz;
+        soa.shear[1].0[i] = pick(ky) * sz;
+        soa.shear[2].0[i] = sz;
+        *axes = kx | ky << 2 | kz << 4;
+    }
+    let k_of = |a: u32| [(a & 3) as usize, (a >> 2 & 3) as usize, (a >> 4) as usize];
+    for (g, k) in soa.k.iter_mut().enumerate() {
+        let octet = &axes[8 * g..8 * g + 8];
+        if octet.iter().all(|&a| a == octet[0]) {
+            *k = Some(k_of(octet[0]));
         }
     }
-    std::array::from_fn(|i| {
-        let inv_dir = Vec3::new(inv[0].0[i], inv[1].0[i], inv[2].0[i]);
-        ray_with_inverse(origins[i], dirs[i], inv_dir, 0.0)
-    })
+    let unset = Ray {
+        origin: Vec3::ZERO,
+        dir: Vec3::ZERO,
+        inv_dir: Vec3::ZERO,
+        k: [0, 1, 2],
+        shear: Vec3::ZERO,
+        time: 0.0,
+    };
+    let mut rays = [unset; WIDTH];
+    for (i, ray) in rays.iter_mut().enumerate() {
+        *ray = Ray {
+            origin: lane(&soa.o, i),
+            dir: lane(&soa.dir, i),
+            inv_dir: lane(&soa.inv, i),
+            k: k_of(axes[i]),
+            shear: lane(&soa.shear, i),
+            time: 0.0,
+        };
+    }
+    RayPacket { rays, soa }
 }
 
 /// `trace::pixel_ray` for each of `pixels`, four at a time: the same
 /// operations in the same order per lane (`camera_ray`'s, the
 /// normalisation's, `make_ray`'s), so each ray is `pixel_ray`'s to the bit.
-pub(super) fn pixel_rays(scene: &CpuScene<f32>, pixels: &[[u32; 2]; WIDTH]) -> [Ray<f32>; WIDTH] {
+#[inline(always)]
+pub(super) fn pixel_rays(scene: &CpuScene<f32>, pixels: &[[u32; 2]; WIDTH]) -> RayPacket {
     let (w, h) = (scene.size[0] as f32, scene.size[1] as f32);
     let [hx, hy] = scene.half_extent;
-    let mut dirs = [Vec3::ZERO; WIDTH];
+    let mut dirs = [Lanes([0.0; WIDTH]); 3];
     for q in 0..QUADS {
         let x = Vec4::from_array(std::array::from_fn(|i| pixels[4 * q + i][0] as f32));
         let y = Vec4::from_array(std::array::from_fn(|i| pixels[4 * q + i][1] as f32));
@@ -258,10 +349,9 @@ pub(super) fn pixel_rays(scene: &CpuScene<f32>, pixels: &[[u32; 2]; WIDTH]) -> [
         // `Real::normalize` of (x, y, -1): its dot product, left to right.
         let len2 = ndc_x * ndc_x + ndc_y * ndc_y + Vec4::ONE;
         let s = Vec4::ONE / len2.sqrt();
-        let (dx, dy, dz) = (ndc_x * s, ndc_y * s, Vec4::NEG_ONE * s);
-        for i in 0..4 {
-            dirs[4 * q + i] = Vec3::new(dx[i], dy[i], dz[i]);
-        }
+        dirs[0].set_quad(q, ndc_x * s);
+        dirs[1].set_quad(q, ndc_y * s);
+        dirs[2].set_quad(q, Vec4::NEG_ONE * s);
     }
-    make_rays(&[Vec3::ZERO; WIDTH], &dirs)
+    make_rays(&[Lanes([0.0; WIDTH]); 3], &dirs)
 }

@@ -20,6 +20,7 @@
 mod avx2;
 mod avx512;
 mod lanes;
+mod points;
 mod shade;
 mod sse;
 #[cfg(test)]

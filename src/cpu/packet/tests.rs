@@ -6,13 +6,12 @@ use super::avx2::*;
 #[cfg(target_arch = "x86_64")]
 use super::avx512::*;
 use super::lanes::*;
-use super::shade::*;
 use super::sse::*;
 use super::walk::*;
 use crate::bvh::wide;
 use crate::bvh::Bvh;
+use crate::cpu::trace::{hit_triangle, CpuScene, Hit, Ray, Sphere, NO_HIT};
 use crate::cpu::trace::{make_ray, traverse as single, CpuGeometry};
-use crate::cpu::trace::{surface_point, CpuScene, Hit, Ray, Sphere, SurfacePoint, NO_HIT};
 use crate::cpu::CpuOptions;
 use crate::cpu::Real;
 use crate::scene::Scene;
@@ -102,143 +101,6 @@ fn packets_find_what_single_rays_find() {
         "{hits} hits, {blocked} blocked"
     );
     assert!(ties < hits / 100, "{ties} ties");
-}
-
-/// The SIMD surface point is the generic one to the bit, field by
-/// field: on triangles of every size (1e-20 to 1e20 across, so that
-/// products overflow and underflow), flat ones (whose geometric normal
-/// falls back), zero and opposed shading normals (whose sum falls back),
-/// a different material at each corner, and barycentrics inside, on
-/// the edges and outside.
-#[test]
-fn simd_surface_point_is_the_generic_one_to_the_bit() {
-    use crate::scene::{Material, Triangle, Vertex};
-    use glam::DVec3;
-    let mut next = uniform(5);
-    let mut scene = Scene::default();
-    let materials: Vec<u32> = (0..8)
-        .map(|_| {
-            let mut c =
-                || DVec3::new(f64::from(next()), f64::from(next()), f64::from(next())).abs();
-            scene.add_material(Material {
-                kd: c(),
-                ks: c(),
-                shininess: f64::from(next().abs()) * 100.0,
-            })
-        })
-        .collect();
-    for i in 0..4000usize {
-        let size = 10f64.powi((i % 41) as i32 - 20);
-        let c = DVec3::new(
-            f64::from(next()),
-            f64::from(next()),
-            f64::from(next()) - 2.0,
-        ) * size;
-        let flat = i % 7 == 0;
-        let vertices = [0usize, 1, 2].map(|k| {
-            let d = DVec3::new(f64::from(next()), f64::from(next()), f64::from(next()));
-            let position = if flat {
-                c + DVec3::X * (k as f64 + 0.5) * size
-            } else {
-                c + d * size
-            };
-            let normal = match (i + k) % 5 {
-                0 => DVec3::ZERO,
-                1 if k > 0 => -DVec3::Y,
-                1 => DVec3::Y,
-                _ => DVec3::new(f64::from(next()), f64::from(next()), f64::from(next())),
-            };
-            Vertex {
-                position,
-                normal,
-                material: materials[(i + 3 * k) % materials.len()],
-            }
-        });
-        scene.triangles.push(Triangle {
-            vertices,
-            velocity: DVec3::ZERO,
-        });
-    }
-    let bvh = Bvh::build(&scene);
-    let geometry = CpuGeometry::new(&scene, &bvh, &Default::default());
-    let camera = crate::camera::Camera::new(64, 48);
-    let cpu = CpuScene::new(&scene, &bvh, &geometry, &camera, &CpuOptions::default());
-    let ray = make_ray::<f32>(Vec3::ZERO, Vec3::NEG_Z, 0.0);
-    let bits = |v: Vec3| v.to_array().map(f32::to_bits);
-    for prim in 0..scene.triangles.len() as u32 {
-        for k in 0..8 {
-            let (b1, b2) = match k {
-                0 => (0.0, 0.0),
-                1 => (1.0, 0.0),
-                2 => (0.5, 0.5),
-                3 => (1.5, -0.25),
-                _ => ((next() + 1.0) * 0.5, (next() + 1.0) * 0.25),
-            };
-            let hit = Hit {
-                t: 1.0,
-                prim,
-                b1,
-                b2,
-            };
-            let want = surface_point(&cpu, &ray, &hit);
-            let got = surface_point_f32(&cpu, &ray, &hit);
-            let fields = |s: &SurfacePoint<f32>| {
-                (
-                    [s.p, s.n, s.ng, s.scale, s.kd, s.ks].map(bits),
-                    s.shininess.to_bits(),
-                )
-            };
-            assert_eq!(fields(&got), fields(&want), "triangle {prim}, b {b1} {b2}");
-        }
-    }
-}
-
-/// The SIMD point-light term is the generic one's contribution to the
-/// bit: lights at the point itself (no direction), behind the surface,
-/// shininess 0 (0^0 = 1) and large, views along and against the normal.
-#[test]
-fn simd_point_term_is_the_generic_one_to_the_bit() {
-    use crate::cpu::trace::point_shading;
-    let mut next = uniform(9);
-    let mut v = || Vec3::new(next(), next(), next());
-    let bits = |v: Vec3| v.to_array().map(f32::to_bits);
-    for i in 0..200_000 {
-        let p = v() * 10.0;
-        let n = if i % 9 == 0 {
-            Vec3::ZERO
-        } else {
-            v().normalize_or_zero()
-        };
-        let sp = SurfacePoint {
-            p,
-            n,
-            ng: n,
-            scale: p.abs(),
-            kd: v().abs(),
-            ks: v().abs(),
-            shininess: [0.0, 1.0, 0.5, 100.0][i % 4] * (1.0 + v().x),
-        };
-        let target = match i % 7 {
-            0 => p,
-            1 => p - n,
-            _ => v() * 20.0,
-        };
-        let view = match i % 5 {
-            0 => n,
-            1 => -n,
-            _ => v().normalize_or_zero(),
-        };
-        let color = v().abs();
-        let blocker = Hit {
-            t: 0.0,
-            prim: NO_HIT,
-            b1: 0.0,
-            b2: 0.0,
-        };
-        let want = point_shading(&sp, view, target, color, p, blocker).contribution;
-        let got = point_contribution_f32(&sp, view, target, color);
-        assert_eq!(bits(got.into()), bits(want), "case {i}");
-    }
 }
 
 /// The AVX2 and AVX-512 box tests give every ray what the SSE one gives
@@ -401,7 +263,9 @@ fn sphere_rays_match_the_scalar_test() {
 /// The octet triangle test gives each ray `wide::hit_block_f32`'s
 /// answer to the bit (which triangle, t, barycentrics), over blocks
 /// with empty lanes, degenerate and edge-sharing triangles, rays on
-/// every axis order and limits that cut hits off.
+/// every axis order and limits that cut hits off; and each of the
+/// block's triangles alone (`hit_triangle_octet`) gives each ray
+/// `hit_triangle`'s.
 #[cfg(target_arch = "x86_64")]
 #[test]
 fn octet_triangle_test_matches_the_block_test() {
@@ -502,6 +366,41 @@ fn octet_triangle_test_matches_the_block_test() {
                     }
                 }
             }
+            // Each triangle alone (a leaf that is no block): each ray
+            // `hit_triangle`'s answer, kept where nearer than its limit.
+            for (j, tri) in corners.iter().enumerate().take(used) {
+                let mut best = [Hit {
+                    t: 0.0,
+                    prim: NO_HIT,
+                    b1: 0.0,
+                    b2: 0.0,
+                }; WIDTH];
+                let mut best_t = Lanes(limit);
+                for (r, h) in best.iter_mut().enumerate() {
+                    h.t = limit[r];
+                }
+                let prim = 10 + j as u32;
+                // SAFETY: the CPU has AVX2, checked above.
+                let found = unsafe {
+                    hit_triangle_octet(tri, prim, &soa, (k, g, m8), &mut best, &mut best_t)
+                };
+                for i in 0..8 {
+                    let r = 8 * g + i;
+                    let (t, b1, b2) = hit_triangle(&rays[r], tri, limit[r]);
+                    let want = m8 & 1 << i != 0 && t < limit[r];
+                    assert_eq!(found >> r & 1 == 1, want, "triangle {b}.{j} ray {r}");
+                    let expect = if want {
+                        (prim, [t, b1, b2])
+                    } else {
+                        (NO_HIT, [limit[r], 0.0, 0.0])
+                    };
+                    let h = best[r];
+                    let bits = |(p, v): (u32, [f32; 3])| (p, v.map(f32::to_bits));
+                    let got = (h.prim, [h.t, h.b1, h.b2]);
+                    assert_eq!(bits(got), bits(expect), "triangle {b}.{j} ray {r}");
+                    assert_eq!(best_t.0[r].to_bits(), expect.1[0].to_bits());
+                }
+            }
         }
     }
     assert!(
@@ -558,10 +457,26 @@ fn packet_rays_match_make_ray() {
             }
             d
         });
-        let got = make_rays(&origins, &dirs);
+        let (mut o, mut d) = ([Lanes([0.0; WIDTH]); 3], [Lanes([0.0; WIDTH]); 3]);
+        for r in 0..WIDTH {
+            set_lane(&mut o, r, origins[r]);
+            set_lane(&mut d, r, dirs[r]);
+        }
+        let got = make_rays(&o, &d);
         for r in 0..WIDTH {
             let want = make_ray(origins[r], dirs[r], 0.0);
-            assert_eq!(bits(&got[r]), bits(&want), "{:?}", dirs[r]);
+            assert_eq!(bits(&got.rays[r]), bits(&want), "{:?}", dirs[r]);
+        }
+        // Its lanes are the rays', as `Soa::new` reads them off.
+        let soa = Soa::new(&got.rays);
+        assert_eq!(got.soa.k, soa.k);
+        for (a, b) in [(&got.soa.o, &soa.o), (&got.soa.dir, &soa.dir)]
+            .into_iter()
+            .chain([(&got.soa.inv, &soa.inv), (&got.soa.shear, &soa.shear)])
+        {
+            for axis in 0..3 {
+                assert_eq!(a[axis].0.map(f32::to_bits), b[axis].0.map(f32::to_bits));
+            }
         }
     }
 }
@@ -580,7 +495,7 @@ fn packet_pixel_rays_match_pixel_ray() {
             .collect();
         for chunk in pixels.chunks(WIDTH) {
             let tile = std::array::from_fn(|i| chunk[i.min(chunk.len() - 1)]);
-            for (r, ray) in pixel_rays(&cpu, &tile).iter().enumerate() {
+            for (r, ray) in pixel_rays(&cpu, &tile).rays.iter().enumerate() {
                 let [x, y] = tile[r];
                 let want = crate::cpu::trace::pixel_ray(&cpu, x, y);
                 assert_eq!(bits(ray), bits(&want), "{w}x{h} pixel {x},{y}");

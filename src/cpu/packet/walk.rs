@@ -2,7 +2,7 @@
 //! rays, compiled for SSE, AVX2 or AVX-512 and chosen at run time.
 
 #[cfg(target_arch = "x86_64")]
-use super::avx2::{children_avx2, hit_block_octet};
+use super::avx2::{children_avx2, hit_block_octet, hit_triangle_octet};
 #[cfg(target_arch = "x86_64")]
 use super::avx512::children_avx512;
 use super::lanes::*;
@@ -25,11 +25,37 @@ pub fn traverse(
     t_max: f32,
     any_hit: bool,
 ) -> [Hit<f32>; WIDTH] {
+    let soa = Soa::new(rays);
     let query = Query {
         rays,
+        soa: &soa,
         active,
         t_max,
     };
+    run(scene, query, any_hit)
+}
+
+/// `traverse` for the rays `make_rays` made, whose lanes are already
+/// filled.
+pub(super) fn traverse_packet(
+    scene: &CpuScene<f32>,
+    packet: &RayPacket,
+    active: u32,
+    t_max: f32,
+    any_hit: bool,
+) -> [Hit<f32>; WIDTH] {
+    let query = Query {
+        rays: &packet.rays,
+        soa: &packet.soa,
+        active,
+        t_max,
+    };
+    run(scene, query, any_hit)
+}
+
+/// `query` through the traversal compiled for the widest instructions
+/// the CPU has.
+fn run(scene: &CpuScene<f32>, query: Query, any_hit: bool) -> [Hit<f32>; WIDTH] {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx512f") {
         // SAFETY: the CPU has AVX-512F (and so AVX2), checked just above.
@@ -100,6 +126,7 @@ pub(super) fn traverse_with<const SIMD: u8, const ANY_HIT: bool>(
 ) -> [Hit<f32>; WIDTH] {
     let Query {
         rays,
+        soa,
         active,
         t_max,
     } = query;
@@ -112,7 +139,6 @@ pub(super) fn traverse_with<const SIMD: u8, const ANY_HIT: bool>(
     if scene.wide.nodes.is_empty() || active == 0 {
         return best;
     }
-    let soa = Soa::new(rays);
     // Where `hit_leaf` tests a leaf's triangles as one SIMD block (a packet
     // never skips surfaces); with `applies`, always.
     let simd_leaves = scene.methods == Methods::Robust && !scene.motion_blur;
@@ -176,14 +202,14 @@ pub(super) fn traverse_with<const SIMD: u8, const ANY_HIT: bool>(
         // where the CPU has AVX-512F, and AVX2 only in `traverse_avx2`,
         // which runs only where it has AVX2.
         if SIMD == AVX512 {
-            unsafe { children_avx512::<ANY_HIT>(node, &soa, mask, &best_t, &mut kids) }
+            unsafe { children_avx512::<ANY_HIT>(node, soa, mask, &best_t, &mut kids) }
         } else if SIMD == AVX2 {
-            unsafe { children_avx2::<ANY_HIT>(node, &soa, mask, &best_t, &mut kids) }
+            unsafe { children_avx2::<ANY_HIT>(node, soa, mask, &best_t, &mut kids) }
         } else {
-            children_sse::<ANY_HIT>(node, &soa, mask, &best_t, &mut kids)
+            children_sse::<ANY_HIT>(node, soa, mask, &best_t, &mut kids)
         };
         #[cfg(not(target_arch = "x86_64"))]
-        children_sse::<ANY_HIT>(node, &soa, mask, &best_t, &mut kids);
+        children_sse::<ANY_HIT>(node, soa, mask, &best_t, &mut kids);
         let Children {
             hits,
             ref near,
@@ -239,7 +265,7 @@ pub(super) fn traverse_with<const SIMD: u8, const ANY_HIT: bool>(
             }
             let packet = Packet {
                 rays,
-                soa: &soa,
+                soa,
                 best: &mut best,
                 best_t: &mut best_t,
                 live: &mut live,
@@ -359,6 +385,29 @@ fn test_leaf<const SIMD: u8, const ANY_HIT: bool>(
             } else {
                 let tri = &scene.triangles[index];
                 let mut each = rays_in;
+                // Across an octet's rays where they share an axis order and
+                // enough of them came, as a SIMD block's triangles.
+                #[cfg(target_arch = "x86_64")]
+                if SIMD >= AVX2 {
+                    for (g, k) in p.soa.k.iter().enumerate() {
+                        let m8 = each >> (8 * g) & 255;
+                        let Some(k) = *k else { continue };
+                        if m8.count_ones() < OCTET_MIN_RAYS {
+                            continue;
+                        }
+                        each &= !(m8 << (8 * g));
+                        // SAFETY: SIMD is AVX2 or more only in
+                        // `traverse_avx2` and `traverse_avx512`, which run
+                        // only where the CPU has AVX2.
+                        let found = unsafe {
+                            hit_triangle_octet(tri, prim, p.soa, (k, g, m8), p.best, p.best_t)
+                        };
+                        if ANY_HIT {
+                            *p.live &= !found;
+                            rays_in &= !found;
+                        }
+                    }
+                }
                 while each != 0 {
                     let r = each.trailing_zeros() as usize;
                     each &= each - 1;

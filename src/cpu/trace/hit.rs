@@ -26,6 +26,16 @@ pub(crate) fn count_ray(kind: usize) {
     });
 }
 
+/// `count_ray` for `n` rays at once (a packet's).
+#[inline]
+pub(crate) fn count_rays(kind: usize, n: u64) {
+    RAYS.with(|r| {
+        let mut v = r.get();
+        v[kind] += n;
+        r.set(v);
+    });
+}
+
 /// Closest-hit and shadow rays cast on this thread so far; the difference
 /// of two readings around some work is what that work cast.
 pub fn rays_cast() -> [u64; 2] {

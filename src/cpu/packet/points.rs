@@ -1,0 +1,267 @@
+//! A packet's shading in lanes: its triangles' surface points, their
+//! shadow rays' origins and the point lights' terms, one f32 array per
+//! component with a ray to each element, in loops the compiler turns into
+//! whole registers of rays (eight under AVX2). Each lane takes the single
+//! ray's operations (`trace::surface_point`, `shadow_origin`,
+//! `point_shading`) in the same order on the same values: multiplies, adds,
+//! divisions, square roots and the same `f32::max`, each correctly rounded
+//! whatever the width, and no fused multiply-add (Rust never contracts).
+//! So every lane is the single ray's to the bit (tested). `powf` stays one
+//! call a lane, the libm one the single ray calls.
+//!
+//! Shading a pixel at a time in SSE (a vector's three components in one
+//! register) was 40% of `table`'s render: each step waited on the one
+//! before, and the horizontal sums of its dot products wasted the
+//! register's width.
+
+use super::lanes::{lane, set_lane, Lanes, V3s, WIDTH};
+use crate::cpu::trace::{pow_c, CpuScene, Hit, SurfacePoint};
+use crate::cpu::Real;
+use glam::Vec3;
+
+#[cfg(test)]
+mod tests;
+
+const ZERO: Lanes = Lanes([0.0; WIDTH]);
+const ZEROS: V3s = [ZERO; 3];
+
+/// A packet's surface points (`SurfacePoint`), by component.
+#[derive(Clone, Copy)]
+pub(super) struct Points {
+    pub(super) p: V3s,
+    pub(super) n: V3s,
+    pub(super) ng: V3s,
+    pub(super) scale: V3s,
+    pub(super) kd: V3s,
+    pub(super) ks: V3s,
+    pub(super) shininess: Lanes,
+}
+
+impl Points {
+    /// Lane `i`'s point.
+    #[inline(always)]
+    pub(super) fn get(&self, i: usize) -> SurfacePoint<f32> {
+        SurfacePoint {
+            p: lane(&self.p, i),
+            n: lane(&self.n, i),
+            ng: lane(&self.ng, i),
+            scale: lane(&self.scale, i),
+            kd: lane(&self.kd, i),
+            ks: lane(&self.ks, i),
+            shininess: self.shininess.0[i],
+        }
+    }
+
+    /// Sets lane `i` to `sp`.
+    #[inline(always)]
+    pub(super) fn set(&mut self, i: usize, sp: &SurfacePoint<f32>) {
+        set_lane(&mut self.p, i, sp.p);
+        set_lane(&mut self.n, i, sp.n);
+        set_lane(&mut self.ng, i, sp.ng);
+        set_lane(&mut self.scale, i, sp.scale);
+        set_lane(&mut self.kd, i, sp.kd);
+        set_lane(&mut self.ks, i, sp.ks);
+        self.shininess.0[i] = sp.shininess;
+    }
+}
+
+/// What `trace::surface_point` reads of a triangle hit, gathered by lane:
+/// the corners, their shading normals and materials, and the barycentrics.
+struct Corners {
+    pos: [V3s; 3],
+    normal: [V3s; 3],
+    kd: [V3s; 3],
+    ks: [V3s; 3],
+    shininess: [Lanes; 3],
+    b1: Lanes,
+    b2: Lanes,
+}
+
+/// `trace::safe_normalize` of lane `i` (its dot product left to right,
+/// then one division by the square root), `fallback` where `v` has no
+/// length.
+#[inline(always)]
+fn safe_normalize(v: [f32; 3], fallback: [f32; 3]) -> [f32; 3] {
+    let len2 = v[0] * v[0] + v[1] * v[1] + v[2] * v[2];
+    let s = 1.0 / len2.sqrt();
+    let n = [v[0] * s, v[1] * s, v[2] * s];
+    if len2 > 0.0 {
+        n
+    } else {
+        fallback
+    }
+}
+
+#[inline(always)]
+fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
+    a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
+}
+
+/// The surface points of the triangle hits in `lanes` (each the robust
+/// method's `surface_point`, nothing moving), every lane of `points`
+/// written: the others hold what zeros give, for the caller to overwrite
+/// (a store in every lane is what lets the loop fill whole registers).
+#[inline(always)]
+pub(super) fn triangle_points(
+    scene: &CpuScene<f32>,
+    hits: &[Hit<f32>; WIDTH],
+    lanes: u32,
+    points: &mut Points,
+) {
+    let mut c = Corners {
+        pos: [ZEROS; 3],
+        normal: [ZEROS; 3],
+        kd: [ZEROS; 3],
+        ks: [ZEROS; 3],
+        shininess: [ZERO; 3],
+        b1: ZERO,
+        b2: ZERO,
+    };
+    let mut each = lanes;
+    while each != 0 {
+        let i = each.trailing_zeros() as usize;
+        each &= each - 1;
+        let index = hits[i].prim as usize;
+        let tri = &scene.triangles[index];
+        let shading = &scene.shading[index];
+        for k in 0..3 {
+            let m = &scene.materials[shading[k].material as usize];
+            set_lane(&mut c.pos[k], i, tri[k]);
+            set_lane(&mut c.normal[k], i, shading[k].normal);
+            set_lane(&mut c.kd[k], i, m.kd);
+            set_lane(&mut c.ks[k], i, m.ks);
+            c.shininess[k].0[i] = m.shininess;
+        }
+        c.b1.0[i] = hits[i].b1;
+        c.b2.0[i] = hits[i].b2;
+    }
+    for i in 0..WIDTH {
+        let (b1, b2) = (c.b1.0[i], c.b2.0[i]);
+        let w = [1.0 - b1 - b2, b1, b2];
+        let t = [at(&c.pos[0], i), at(&c.pos[1], i), at(&c.pos[2], i)];
+        let (e1, e2) = (sub(t[1], t[0]), sub(t[2], t[0]));
+        // glam's `Vec3::cross`, component by component.
+        let cross = [
+            e1[1] * e2[2] - e2[1] * e1[2],
+            e1[2] * e2[0] - e2[2] * e1[0],
+            e1[0] * e2[1] - e2[0] * e1[1],
+        ];
+        let ng = safe_normalize(cross, [0.0, 0.0, 1.0]);
+        let n = safe_normalize(mix(&c.normal, w, i), ng);
+        let (kd, ks) = (mix(&c.kd, w, i), mix(&c.ks, w, i));
+        for a in 0..3 {
+            let tw = [t[0][a] * w[0], t[1][a] * w[1], t[2][a] * w[2]];
+            points.p[a].0[i] = tw[0] + tw[1] + tw[2];
+            points.n[a].0[i] = n[a];
+            points.ng[a].0[i] = ng[a];
+            points.scale[a].0[i] = tw[0].abs() + tw[1].abs() + tw[2].abs();
+            points.kd[a].0[i] = kd[a];
+            points.ks[a].0[i] = ks[a];
+        }
+        points.shininess.0[i] =
+            w[0] * c.shininess[0].0[i] + w[1] * c.shininess[1].0[i] + w[2] * c.shininess[2].0[i];
+    }
+}
+
+/// Lane `i` of `v`. (Helpers on `[f32; 3]`, not `Vec3` or `map`: the
+/// generic array `map` was left uninlined inside the AVX2 loops, which
+/// then ran a lane at a time.)
+#[inline(always)]
+fn at(v: &V3s, i: usize) -> [f32; 3] {
+    [v[0].0[i], v[1].0[i], v[2].0[i]]
+}
+
+#[inline(always)]
+fn sub(a: [f32; 3], b: [f32; 3]) -> [f32; 3] {
+    [a[0] - b[0], a[1] - b[1], a[2] - b[2]]
+}
+
+/// Lane `i` of the three corners' `v` weighted by `w`, left to right.
+#[inline(always)]
+fn mix(v: &[V3s; 3], w: [f32; 3], i: usize) -> [f32; 3] {
+    let m = |a: usize| v[0][a].0[i] * w[0] + v[1][a].0[i] * w[1] + v[2][a].0[i] * w[2];
+    [m(0), m(1), m(2)]
+}
+
+/// `trace::shadow_origin` (robust) of every lane towards `target`, and the
+/// direction from it to `target`: the shadow rays of a point light.
+#[inline(always)]
+pub(super) fn shadow_rays(points: &Points, target: Vec3) -> (V3s, V3s) {
+    let (mut origin, mut dir) = (ZEROS, ZEROS);
+    for i in 0..WIDTH {
+        let (p, ng, scale) = (at(&points.p, i), at(&points.ng, i), at(&points.scale, i));
+        let to_light = sub(target.to_array(), p);
+        let toward = dot(ng, to_light) >= 0.0;
+        for a in 0..3 {
+            let n = if toward { ng[a] } else { -ng[a] };
+            let o = offset(p[a], n, scale[a]);
+            origin[a].0[i] = o;
+            dir[a].0[i] = target[a] - o;
+        }
+    }
+    (origin, dir)
+}
+
+/// `Real::offset_ray` of one coordinate (`real.rs`'s scalar definition,
+/// its saturating `as i32` included).
+#[inline(always)]
+fn offset(p: f32, n: f32, scale: f32) -> f32 {
+    let of_i = (f32::OFFSET_INT_SCALE * n) as i32;
+    let bits = p.to_bits() as i32;
+    let moved = if p < 0.0 {
+        bits.wrapping_sub(of_i)
+    } else {
+        bits.wrapping_add(of_i)
+    };
+    let float = p + f32::OFFSET_FLOAT_SCALE * scale * n;
+    if p.abs() < f32::OFFSET_ORIGIN * scale {
+        float
+    } else {
+        f32::from_bits(moved as u32)
+    }
+}
+
+/// Adds to `colour`, in the lanes of `lit`, what an unblocked point light
+/// at `target` of colour `color` gives each point seen along `dir`
+/// (`trace::point_shading`'s contribution).
+#[inline(always)]
+pub(super) fn add_point_light(
+    points: &Points,
+    dir: &V3s,
+    lit: u32,
+    target: Vec3,
+    color: Vec3,
+    colour: &mut V3s,
+) {
+    let mut rv = ZERO;
+    let mut ln = ZERO;
+    for i in 0..WIDTH {
+        let (p, n, dir) = (at(&points.p, i), at(&points.n, i), at(dir, i));
+        let view = [-dir[0], -dir[1], -dir[2]];
+        let l = safe_normalize(sub(target.to_array(), p), n);
+        let d = dot(l, n);
+        let r = [
+            n[0] * (2.0 * d) - l[0],
+            n[1] * (2.0 * d) - l[1],
+            n[2] * (2.0 * d) - l[2],
+        ];
+        ln.0[i] = d;
+        rv.0[i] = dot(r, view).max(0.0);
+    }
+    let mut spec = ZERO;
+    let mut each = lit;
+    while each != 0 {
+        let i = each.trailing_zeros() as usize;
+        each &= each - 1;
+        spec.0[i] = pow_c(rv.0[i], points.shininess.0[i]);
+    }
+    for i in 0..WIDTH {
+        let on = lit >> i & 1 != 0;
+        let diffuse = ln.0[i].max(0.0);
+        for a in 0..3 {
+            let term = color[a] * (points.kd[a].0[i] * diffuse + points.ks[a].0[i] * spec.0[i]);
+            let sum = colour[a].0[i] + term;
+            colour[a].0[i] = if on { sum } else { colour[a].0[i] };
+        }
+    }
+}
