@@ -58,18 +58,35 @@ pub(super) struct Soa {
     /// Per octet of rays, their axis order `k` where all eight share it
     /// (the octet's triangle tests can then run across its rays).
     pub(super) k: [Option<[usize; 3]>; WIDTH / 8],
+    /// Per ray its `k`, packed (`pack_k`).
+    pub(super) axes: [u32; WIDTH],
+}
+
+/// A ray's axis order in a word: kx | ky << 2 | kz << 4.
+#[inline(always)]
+fn pack_k(k: [usize; 3]) -> u32 {
+    (k[0] | k[1] << 2 | k[2] << 4) as u32
+}
+
+#[inline(always)]
+fn unpack_k(a: u32) -> [usize; 3] {
+    [(a & 3) as usize, (a >> 2 & 3) as usize, (a >> 4) as usize]
 }
 
 impl Soa {
+    /// No rays yet: space for `make_rays`, kept from packet to packet.
+    pub(super) const EMPTY: Soa = Soa {
+        o: [Lanes([0.0; WIDTH]); 3],
+        dir: [Lanes([0.0; WIDTH]); 3],
+        inv: [Lanes([0.0; WIDTH]); 3],
+        shear: [Lanes([0.0; WIDTH]); 3],
+        k: [None; WIDTH / 8],
+        axes: [0; WIDTH],
+    };
+
     #[inline(always)]
     pub(super) fn new(rays: &[Ray<f32>; WIDTH]) -> Self {
-        let mut soa = Soa {
-            o: [Lanes([0.0; WIDTH]); 3],
-            dir: [Lanes([0.0; WIDTH]); 3],
-            inv: [Lanes([0.0; WIDTH]); 3],
-            shear: [Lanes([0.0; WIDTH]); 3],
-            k: [None; WIDTH / 8],
-        };
+        let mut soa = Soa::EMPTY;
         for (r, ray) in rays.iter().enumerate() {
             for axis in 0..3 {
                 soa.o[axis].0[r] = ray.origin[axis];
@@ -77,14 +94,37 @@ impl Soa {
                 soa.inv[axis].0[r] = ray.inv_dir[axis];
                 soa.shear[axis].0[r] = ray.shear[axis];
             }
+            soa.axes[r] = pack_k(ray.k);
         }
-        for (g, k) in soa.k.iter_mut().enumerate() {
-            let octet = &rays[8 * g..8 * g + 8];
-            if octet.iter().all(|r| r.k == octet[0].k) {
-                *k = Some(octet[0].k);
-            }
-        }
+        soa.share_k();
         soa
+    }
+
+    /// `k` from `axes`.
+    #[inline(always)]
+    fn share_k(&mut self) {
+        for (g, k) in self.k.iter_mut().enumerate() {
+            let octet = &self.axes[8 * g..8 * g + 8];
+            *k = octet
+                .iter()
+                .all(|&a| a == octet[0])
+                .then(|| unpack_k(octet[0]));
+        }
+    }
+
+    /// Ray `r` whole, for the tests a ray takes alone (made only for
+    /// those: building all of a packet's rays was 7% of `table`'s
+    /// instructions).
+    #[inline(always)]
+    pub(super) fn ray(&self, r: usize) -> Ray<f32> {
+        Ray {
+            origin: lane(&self.o, r),
+            dir: lane(&self.dir, r),
+            inv_dir: lane(&self.inv, r),
+            k: unpack_k(self.axes[r]),
+            shear: lane(&self.shear, r),
+            time: 0.0,
+        }
     }
 }
 
@@ -192,8 +232,6 @@ pub(super) type Entry = (u32, u32, f32);
 /// `active`.
 #[derive(Clone, Copy)]
 pub(super) struct Query<'a> {
-    pub(super) rays: &'a [Ray<f32>; WIDTH],
-    /// The same rays by component.
     pub(super) soa: &'a Soa,
     pub(super) active: u32,
     pub(super) t_max: f32,
@@ -239,13 +277,6 @@ pub(super) fn set_lane(v: &mut V3s, i: usize, x: Vec3) {
     }
 }
 
-/// A packet's rays, each whole (for the tests a ray takes alone) and by
-/// component (for those that take them together).
-pub(super) struct RayPacket {
-    pub(super) rays: [Ray<f32>; WIDTH],
-    pub(super) soa: Soa,
-}
-
 /// `trace::make_ray` (at time 0) for a packet's rays, given by lane, in
 /// loops over the lanes that fill whole registers: per lane the same
 /// operations on the same values (`safe_dir`'s, `ray_with_inverse`'s axis
@@ -253,18 +284,10 @@ pub(super) struct RayPacket {
 /// ray at a time, the axis choice's branches mispredicted on shadow rays
 /// and each ray paid two divisions alone.
 #[inline(always)]
-pub(super) fn make_rays(origins: &V3s, dirs: &V3s) -> RayPacket {
-    let zeros = [Lanes([0.0; WIDTH]); 3];
-    let mut soa = Soa {
-        o: *origins,
-        dir: *dirs,
-        inv: zeros,
-        shear: zeros,
-        k: [None; WIDTH / 8],
-    };
-    // Per ray its axes, kx | ky << 2 | kz << 4.
-    let mut axes = [0u32; WIDTH];
-    for (i, axes) in axes.iter_mut().enumerate() {
+pub(super) fn make_rays(origins: &V3s, dirs: &V3s, soa: &mut Soa) {
+    soa.o = *origins;
+    soa.dir = *dirs;
+    for i in 0..WIDTH {
         let d = [dirs[0].0[i], dirs[1].0[i], dirs[2].0[i]];
         for (axis, &d) in d.iter().enumerate() {
             // `trace::safe_dir`.
@@ -301,42 +324,16 @@ pub(super) fn make_rays(origins: &V3s, dirs: &V3s) -> RayPacket {
         soa.shear[0].0[i] = pick(kx) * sz;
         soa.shear[1].0[i] = pick(ky) * sz;
         soa.shear[2].0[i] = sz;
-        *axes = kx | ky << 2 | kz << 4;
+        soa.axes[i] = kx | ky << 2 | kz << 4;
     }
-    let k_of = |a: u32| [(a & 3) as usize, (a >> 2 & 3) as usize, (a >> 4) as usize];
-    for (g, k) in soa.k.iter_mut().enumerate() {
-        let octet = &axes[8 * g..8 * g + 8];
-        if octet.iter().all(|&a| a == octet[0]) {
-            *k = Some(k_of(octet[0]));
-        }
-    }
-    let unset = Ray {
-        origin: Vec3::ZERO,
-        dir: Vec3::ZERO,
-        inv_dir: Vec3::ZERO,
-        k: [0, 1, 2],
-        shear: Vec3::ZERO,
-        time: 0.0,
-    };
-    let mut rays = [unset; WIDTH];
-    for (i, ray) in rays.iter_mut().enumerate() {
-        *ray = Ray {
-            origin: lane(&soa.o, i),
-            dir: lane(&soa.dir, i),
-            inv_dir: lane(&soa.inv, i),
-            k: k_of(axes[i]),
-            shear: lane(&soa.shear, i),
-            time: 0.0,
-        };
-    }
-    RayPacket { rays, soa }
+    soa.share_k();
 }
 
 /// `trace::pixel_ray` for each of `pixels`, four at a time: the same
 /// operations in the same order per lane (`camera_ray`'s, the
 /// normalisation's, `make_ray`'s), so each ray is `pixel_ray`'s to the bit.
 #[inline(always)]
-pub(super) fn pixel_rays(scene: &CpuScene<f32>, pixels: &[[u32; 2]; WIDTH]) -> RayPacket {
+pub(super) fn pixel_rays(scene: &CpuScene<f32>, pixels: &[[u32; 2]; WIDTH], out: &mut Soa) {
     let (w, h) = (scene.size[0] as f32, scene.size[1] as f32);
     let [hx, hy] = scene.half_extent;
     let mut dirs = [Lanes([0.0; WIDTH]); 3];
@@ -353,5 +350,5 @@ pub(super) fn pixel_rays(scene: &CpuScene<f32>, pixels: &[[u32; 2]; WIDTH]) -> R
         dirs[1].set_quad(q, ndc_y * s);
         dirs[2].set_quad(q, Vec4::NEG_ONE * s);
     }
-    make_rays(&[Lanes([0.0; WIDTH]); 3], &dirs)
+    make_rays(&[Lanes([0.0; WIDTH]); 3], &dirs, out);
 }

@@ -16,6 +16,7 @@
 
 use super::lanes::{lane, set_lane, Lanes, V3s, WIDTH};
 use crate::cpu::trace::{pow_c, CpuScene, Hit, SurfacePoint};
+#[cfg(not(target_arch = "x86_64"))]
 use crate::cpu::Real;
 use glam::Vec3;
 
@@ -37,7 +38,29 @@ pub(super) struct Points {
     pub(super) shininess: Lanes,
 }
 
+impl Corners {
+    pub(super) const ZERO: Corners = Corners {
+        pos: [ZEROS; 3],
+        normal: [ZEROS; 3],
+        kd: [ZEROS; 3],
+        ks: [ZEROS; 3],
+        shininess: [ZERO; 3],
+        b1: ZERO,
+        b2: ZERO,
+    };
+}
+
 impl Points {
+    pub(super) const ZERO: Points = Points {
+        p: ZEROS,
+        n: ZEROS,
+        ng: ZEROS,
+        scale: ZEROS,
+        kd: ZEROS,
+        ks: ZEROS,
+        shininess: ZERO,
+    };
+
     /// Lane `i`'s point.
     #[inline(always)]
     pub(super) fn get(&self, i: usize) -> SurfacePoint<f32> {
@@ -67,7 +90,10 @@ impl Points {
 
 /// What `trace::surface_point` reads of a triangle hit, gathered by lane:
 /// the corners, their shading normals and materials, and the barycentrics.
-struct Corners {
+/// Scratch space, kept from packet to packet: lanes without a triangle
+/// hold whatever an earlier packet left (made once, its 6 KB were a
+/// `memset` a packet).
+pub(super) struct Corners {
     pos: [V3s; 3],
     normal: [V3s; 3],
     kd: [V3s; 3],
@@ -106,17 +132,9 @@ pub(super) fn triangle_points(
     scene: &CpuScene<f32>,
     hits: &[Hit<f32>; WIDTH],
     lanes: u32,
+    c: &mut Corners,
     points: &mut Points,
 ) {
-    let mut c = Corners {
-        pos: [ZEROS; 3],
-        normal: [ZEROS; 3],
-        kd: [ZEROS; 3],
-        ks: [ZEROS; 3],
-        shininess: [ZERO; 3],
-        b1: ZERO,
-        b2: ZERO,
-    };
     let mut each = lanes;
     while each != 0 {
         let i = each.trailing_zeros() as usize;
@@ -187,37 +205,62 @@ fn mix(v: &[V3s; 3], w: [f32; 3], i: usize) -> [f32; 3] {
 /// direction from it to `target`: the shadow rays of a point light.
 #[inline(always)]
 pub(super) fn shadow_rays(points: &Points, target: Vec3) -> (V3s, V3s) {
-    let (mut origin, mut dir) = (ZEROS, ZEROS);
+    // The side of the surface the light is on.
+    let mut side = ZEROS;
     for i in 0..WIDTH {
-        let (p, ng, scale) = (at(&points.p, i), at(&points.ng, i), at(&points.scale, i));
-        let to_light = sub(target.to_array(), p);
-        let toward = dot(ng, to_light) >= 0.0;
-        for a in 0..3 {
-            let n = if toward { ng[a] } else { -ng[a] };
-            let o = offset(p[a], n, scale[a]);
-            origin[a].0[i] = o;
-            dir[a].0[i] = target[a] - o;
+        let (p, ng) = (at(&points.p, i), at(&points.ng, i));
+        let toward = dot(ng, sub(target.to_array(), p)) >= 0.0;
+        for (a, side) in side.iter_mut().enumerate() {
+            side.0[i] = if toward { ng[a] } else { -ng[a] };
+        }
+    }
+    let (mut origin, mut dir) = (ZEROS, ZEROS);
+    for a in 0..3 {
+        offset_lanes(&points.p[a], &side[a], &points.scale[a], &mut origin[a]);
+        for i in 0..WIDTH {
+            dir[a].0[i] = target[a] - origin[a].0[i];
         }
     }
     (origin, dir)
 }
 
-/// `Real::offset_ray` of one coordinate (`real.rs`'s scalar definition,
-/// its saturating `as i32` included).
+/// `Real::offset_ray` of one coordinate of every lane, four at a time
+/// (`real::offset_sse2`).
+#[cfg(target_arch = "x86_64")]
 #[inline(always)]
-fn offset(p: f32, n: f32, scale: f32) -> f32 {
-    let of_i = (f32::OFFSET_INT_SCALE * n) as i32;
-    let bits = p.to_bits() as i32;
-    let moved = if p < 0.0 {
-        bits.wrapping_sub(of_i)
-    } else {
-        bits.wrapping_add(of_i)
-    };
-    let float = p + f32::OFFSET_FLOAT_SCALE * scale * n;
-    if p.abs() < f32::OFFSET_ORIGIN * scale {
-        float
-    } else {
-        f32::from_bits(moved as u32)
+fn offset_lanes(p: &Lanes, n: &Lanes, scale: &Lanes, out: &mut Lanes) {
+    use std::arch::x86_64::*;
+    for q in 0..WIDTH / 4 {
+        // SAFETY: `Lanes` is 64-byte aligned and holds `WIDTH` f32, a
+        // multiple of four, as the aligned loads and stores at every
+        // fourth one need.
+        unsafe {
+            let load = |l: &Lanes| _mm_load_ps(l.0.as_ptr().add(4 * q));
+            let o = crate::cpu::real::offset_sse2(load(p), load(n), load(scale));
+            _mm_store_ps(out.0.as_mut_ptr().add(4 * q), o);
+        }
+    }
+}
+
+/// `Real::offset_ray` of one coordinate of every lane (`real.rs`'s scalar
+/// definition, its saturating `as i32` included).
+#[cfg(not(target_arch = "x86_64"))]
+#[inline(always)]
+fn offset_lanes(p: &Lanes, n: &Lanes, scale: &Lanes, out: &mut Lanes) {
+    for i in 0..WIDTH {
+        let (p, n, scale) = (p.0[i], n.0[i], scale.0[i]);
+        let of_i = (f32::OFFSET_INT_SCALE * n) as i32;
+        let bits = p.to_bits() as i32;
+        let moved = if p < 0.0 {
+            bits.wrapping_sub(of_i)
+        } else {
+            bits.wrapping_add(of_i)
+        };
+        out.0[i] = if p.abs() < f32::OFFSET_ORIGIN * scale {
+            p + f32::OFFSET_FLOAT_SCALE * scale * n
+        } else {
+            f32::from_bits(moved as u32)
+        };
     }
 }
 

@@ -4,7 +4,7 @@
 //! single ray's to the bit.
 
 use super::lanes::*;
-use super::points::{add_point_light, shadow_rays, triangle_points, Points};
+use super::points::{add_point_light, shadow_rays, triangle_points, Corners, Points};
 use super::walk::traverse_packet;
 use crate::cpu::trace::{
     centre_key, count_rays, light_at, light_term, reflect_path, surface_point, CpuScene, NO_HIT,
@@ -34,6 +34,12 @@ pub fn fill_band(
     let [tw, _] = TILE;
     let w = scene.size[0];
     let rows = band.len() as u32 / w.max(1);
+    let mut scratch = Scratch {
+        corners: Corners::ZERO,
+        points: Points::ZERO,
+        primary: Soa::EMPTY,
+        shadows: Soa::EMPTY,
+    };
     for x0 in (0..w).step_by(tw as usize) {
         let mut pixels = [[0u32; 2]; WIDTH];
         let mut n = 0;
@@ -45,10 +51,22 @@ pub fn fill_band(
                 }
             }
         }
-        for (&[x, y], c) in pixels[..n].iter().zip(colours(scene, &pixels[..n])) {
+        for (&[x, y], c) in pixels[..n]
+            .iter()
+            .zip(colours(scene, &pixels[..n], &mut scratch))
+        {
             band[((y - y0) * w + x) as usize] = c;
         }
     }
+}
+
+/// A packet's working space, kept from packet to packet so that no
+/// packet pays for clearing its 12 KB (`Corners`, `Soa`).
+pub struct Scratch {
+    corners: Corners,
+    points: Points,
+    primary: Soa,
+    shadows: Soa,
 }
 
 /// The colours `pixel_color` gives `pixels` (up to `WIDTH`), clamped: the
@@ -56,26 +74,44 @@ pub fn fill_band(
 /// pixels that hit something; area lights, lights on surfaces and
 /// reflections one pixel at a time, as `shade_phong` and `radiance` take
 /// them.
-pub fn colours(scene: &CpuScene<f32>, pixels: &[[u32; 2]]) -> [[f32; 3]; WIDTH] {
+pub fn colours(
+    scene: &CpuScene<f32>,
+    pixels: &[[u32; 2]],
+    scratch: &mut Scratch,
+) -> [[f32; 3]; WIDTH] {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2, checked just above.
-        return unsafe { colours_avx2(scene, pixels) };
+        return unsafe { colours_avx2(scene, pixels, scratch) };
     }
-    colours_with(scene, pixels)
+    colours_with(scene, pixels, scratch)
 }
 
 /// `colours_with` compiled for AVX2, so that its lanes' loops
 /// (`points`) take eight rays a register.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn colours_avx2(scene: &CpuScene<f32>, pixels: &[[u32; 2]]) -> [[f32; 3]; WIDTH] {
-    colours_with(scene, pixels)
+fn colours_avx2(
+    scene: &CpuScene<f32>,
+    pixels: &[[u32; 2]],
+    scratch: &mut Scratch,
+) -> [[f32; 3]; WIDTH] {
+    colours_with(scene, pixels, scratch)
 }
 
 /// `colours`, for the instruction sets its caller was compiled for.
 #[inline(always)]
-fn colours_with(scene: &CpuScene<f32>, pixels: &[[u32; 2]]) -> [[f32; 3]; WIDTH] {
+fn colours_with(
+    scene: &CpuScene<f32>,
+    pixels: &[[u32; 2]],
+    scratch: &mut Scratch,
+) -> [[f32; 3]; WIDTH] {
+    let Scratch {
+        corners,
+        points,
+        primary,
+        shadows,
+    } = scratch;
     let mut out = [[0.0; 3]; WIDTH];
     let n = pixels.len().min(WIDTH);
     if n == 0 {
@@ -87,10 +123,9 @@ fn colours_with(scene: &CpuScene<f32>, pixels: &[[u32; 2]]) -> [[f32; 3]; WIDTH]
     for (i, t) in tile.iter_mut().enumerate() {
         *t = pixels[i.min(n - 1)];
     }
-    let primary = pixel_rays(scene, &tile);
-    let rays = &primary.rays;
+    pixel_rays(scene, &tile, primary);
     count_rays(0, n as u64);
-    let hits = traverse_packet(scene, &primary, active, f32::T_INF, false);
+    let hits = traverse_packet(scene, primary, active, f32::T_INF, false);
     let mut lit = 0u32;
     for (i, hit) in hits.iter().enumerate() {
         if active & (1 << i) != 0 && hit.prim != NO_HIT {
@@ -99,15 +134,6 @@ fn colours_with(scene: &CpuScene<f32>, pixels: &[[u32; 2]]) -> [[f32; 3]; WIDTH]
     }
     // Surface points: triangles in lanes (the robust method, nothing
     // moving: always, where packets apply), spheres one by one.
-    let mut points = Points {
-        p: [Lanes([0.0; WIDTH]); 3],
-        n: [Lanes([0.0; WIDTH]); 3],
-        ng: [Lanes([0.0; WIDTH]); 3],
-        scale: [Lanes([0.0; WIDTH]); 3],
-        kd: [Lanes([0.0; WIDTH]); 3],
-        ks: [Lanes([0.0; WIDTH]); 3],
-        shininess: Lanes([0.0; WIDTH]),
-    };
     let lanes_ok = !scene.motion_blur && scene.methods == Methods::Robust;
     let mut triangles = 0u32;
     let mut each = lit;
@@ -119,13 +145,13 @@ fn colours_with(scene: &CpuScene<f32>, pixels: &[[u32; 2]]) -> [[f32; 3]; WIDTH]
         }
     }
     if triangles != 0 {
-        triangle_points(scene, &hits, triangles, &mut points);
+        triangle_points(scene, &hits, triangles, corners, points);
     }
     let mut each = lit & !triangles;
     while each != 0 {
         let i = each.trailing_zeros() as usize;
         each &= each - 1;
-        points.set(i, &surface_point(scene, &rays[i], &hits[i]));
+        points.set(i, &surface_point(scene, &primary.ray(i), &hits[i]));
     }
     let mut colour = [Lanes([0.0; WIDTH]); 3];
     for (a, colour) in colour.iter_mut().enumerate() {
@@ -149,7 +175,8 @@ fn colours_with(scene: &CpuScene<f32>, pixels: &[[u32; 2]]) -> [[f32; 3]; WIDTH]
             while each != 0 {
                 let i = each.trailing_zeros() as usize;
                 each &= each - 1;
-                let term = light_term(scene, &points.get(i), -rays[i].dir, l, 0, &key(i));
+                let view = -lane(&primary.dir, i);
+                let term = light_term(scene, &points.get(i), view, l, 0, &key(i));
                 let sum = lane(&colour, i) + term.contribution;
                 set_lane(&mut colour, i, sum);
             }
@@ -162,7 +189,7 @@ fn colours_with(scene: &CpuScene<f32>, pixels: &[[u32; 2]]) -> [[f32; 3]; WIDTH]
         if lit == 0 {
             continue;
         }
-        let (mut origins, mut to_light) = shadow_rays(&points, light.position);
+        let (mut origins, mut to_light) = shadow_rays(points, light.position);
         let first = lit.trailing_zeros() as usize;
         let (o, d) = (lane(&origins, first), lane(&to_light, first));
         let mut each = !lit;
@@ -172,9 +199,9 @@ fn colours_with(scene: &CpuScene<f32>, pixels: &[[u32; 2]]) -> [[f32; 3]; WIDTH]
             set_lane(&mut origins, i, o);
             set_lane(&mut to_light, i, d);
         }
-        let shadows = make_rays(&origins, &to_light);
+        make_rays(&origins, &to_light, shadows);
         count_rays(1, u64::from(lit.count_ones()));
-        let blockers = traverse_packet(scene, &shadows, lit, 1.0, true);
+        let blockers = traverse_packet(scene, shadows, lit, 1.0, true);
         let mut clear = 0u32;
         for (i, b) in blockers.iter().enumerate() {
             if b.prim == NO_HIT {
@@ -182,8 +209,8 @@ fn colours_with(scene: &CpuScene<f32>, pixels: &[[u32; 2]]) -> [[f32; 3]; WIDTH]
             }
         }
         add_point_light(
-            &points,
-            &primary.soa.dir,
+            points,
+            &primary.dir,
             lit & clear,
             light.position,
             light.color,
@@ -193,7 +220,7 @@ fn colours_with(scene: &CpuScene<f32>, pixels: &[[u32; 2]]) -> [[f32; 3]; WIDTH]
     for (i, px) in out.iter_mut().enumerate().take(n) {
         let local = f32::clamp01(lane(&colour, i));
         let c = if lit & (1 << i) != 0 && scene.reflect_depth > 0 {
-            reflect_path(scene, &rays[i], hits[i], local, &key(i))
+            reflect_path(scene, &primary.ray(i), hits[i], local, &key(i))
         } else {
             local
         };

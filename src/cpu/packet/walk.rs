@@ -27,7 +27,6 @@ pub fn traverse(
 ) -> [Hit<f32>; WIDTH] {
     let soa = Soa::new(rays);
     let query = Query {
-        rays,
         soa: &soa,
         active,
         t_max,
@@ -35,21 +34,15 @@ pub fn traverse(
     run(scene, query, any_hit)
 }
 
-/// `traverse` for the rays `make_rays` made, whose lanes are already
-/// filled.
+/// `traverse` for the rays `make_rays` made, already in lanes.
 pub(super) fn traverse_packet(
     scene: &CpuScene<f32>,
-    packet: &RayPacket,
+    soa: &Soa,
     active: u32,
     t_max: f32,
     any_hit: bool,
 ) -> [Hit<f32>; WIDTH] {
-    let query = Query {
-        rays: &packet.rays,
-        soa: &packet.soa,
-        active,
-        t_max,
-    };
+    let query = Query { soa, active, t_max };
     run(scene, query, any_hit)
 }
 
@@ -124,12 +117,7 @@ pub(super) fn traverse_with<const SIMD: u8, const ANY_HIT: bool>(
     scene: &CpuScene<f32>,
     query: Query,
 ) -> [Hit<f32>; WIDTH] {
-    let Query {
-        rays,
-        soa,
-        active,
-        t_max,
-    } = query;
+    let Query { soa, active, t_max } = query;
     let mut best = [Hit {
         t: t_max,
         prim: NO_HIT,
@@ -185,7 +173,8 @@ pub(super) fn traverse_with<const SIMD: u8, const ANY_HIT: bool>(
             while each != 0 {
                 let r = each.trailing_zeros() as usize;
                 each &= each - 1;
-                crate::cpu::trace::traverse_below(scene, &rays[r], index, &mut best[r], ANY_HIT);
+                let ray = soa.ray(r);
+                crate::cpu::trace::traverse_below(scene, &ray, index, &mut best[r], ANY_HIT);
                 best_t.0[r] = best[r].t;
                 if ANY_HIT && best[r].prim != NO_HIT {
                     live &= !(1 << r);
@@ -264,7 +253,6 @@ pub(super) fn traverse_with<const SIMD: u8, const ANY_HIT: bool>(
                 }
             }
             let packet = Packet {
-                rays,
                 soa,
                 best: &mut best,
                 best_t: &mut best_t,
@@ -282,7 +270,6 @@ pub(super) fn traverse_with<const SIMD: u8, const ANY_HIT: bool>(
 /// One packet's state as a leaf is tested: its rays, their lanes, each
 /// ray's hit so far (and its distance in lanes), and the rays still looking.
 struct Packet<'a> {
-    rays: &'a [Ray<f32>; WIDTH],
     soa: &'a Soa,
     best: &'a mut [Hit<f32>; WIDTH],
     best_t: &'a mut Lanes,
@@ -307,7 +294,8 @@ fn test_leaf<const SIMD: u8, const ANY_HIT: bool>(
         while rays_in != 0 {
             let r = rays_in.trailing_zeros() as usize;
             rays_in &= rays_in - 1;
-            let done = hit_leaf(scene, &p.rays[r], index, &mut p.best[r], ANY_HIT, &[], 0.0);
+            let ray = p.soa.ray(r);
+            let done = hit_leaf(scene, &ray, index, &mut p.best[r], ANY_HIT, &[], 0.0);
             p.best_t.0[r] = p.best[r].t;
             if done {
                 *p.live &= !(1 << r);
@@ -338,13 +326,10 @@ fn test_leaf<const SIMD: u8, const ANY_HIT: bool>(
         while rays_in != 0 {
             let r = rays_in.trailing_zeros() as usize;
             rays_in &= rays_in - 1;
-            if let Some((k, t, b1, b2)) = crate::cpu::simd::hit_block_f32(
-                p.rays[r].origin,
-                p.rays[r].k,
-                p.rays[r].shear,
-                leaf,
-                p.best[r].t,
-            ) {
+            let ray = p.soa.ray(r);
+            if let Some((k, t, b1, b2)) =
+                crate::cpu::simd::hit_block_f32(ray.origin, ray.k, ray.shear, leaf, p.best[r].t)
+            {
                 let prim = leaf.prims[k];
                 p.best[r] = Hit { t, prim, b1, b2 };
                 p.best_t.0[r] = t;
@@ -411,7 +396,7 @@ fn test_leaf<const SIMD: u8, const ANY_HIT: bool>(
                 while each != 0 {
                     let r = each.trailing_zeros() as usize;
                     each &= each - 1;
-                    let (t, b1, b2) = hit_triangle(&p.rays[r], tri, p.best[r].t);
+                    let (t, b1, b2) = hit_triangle(&p.soa.ray(r), tri, p.best[r].t);
                     if t < p.best[r].t {
                         p.best[r] = Hit { t, prim, b1, b2 };
                         p.best_t.0[r] = t;

@@ -137,22 +137,16 @@ fn lane_surface_points_are_the_generic_ones_to_the_bit() {
         }
     }
     both_widths(&|| {
+        // Scratch kept from packet to packet, as the renderer keeps it.
+        let mut corners = Corners::ZERO;
+        let mut points = Points::ZERO;
         for (c, chunk) in cases.chunks(WIDTH).enumerate() {
             let mut hits = [chunk[0]; WIDTH];
             hits[..chunk.len()].copy_from_slice(chunk);
             let mask = u32::MAX >> (32 - chunk.len());
             // Every third packet with a lane left out.
             let mask = if c % 3 == 0 { mask & !2 } else { mask };
-            let mut points = Points {
-                p: ZEROS,
-                n: ZEROS,
-                ng: ZEROS,
-                scale: ZEROS,
-                kd: ZEROS,
-                ks: ZEROS,
-                shininess: ZERO,
-            };
-            triangle_points(&cpu, &hits, mask, &mut points);
+            triangle_points(&cpu, &hits, mask, &mut corners, &mut points);
             for (i, hit) in hits.iter().enumerate().filter(|(i, _)| mask >> i & 1 != 0) {
                 let want = surface_point(&cpu, &ray, hit);
                 assert_eq!(
@@ -203,15 +197,7 @@ fn lane_shadow_rays_are_the_generic_ones_to_the_bit() {
         for round in 0..3000 {
             let sps: [SurfacePoint<f32>; WIDTH] =
                 std::array::from_fn(|i| random_point(&mut next, round * WIDTH + i));
-            let mut points = Points {
-                p: ZEROS,
-                n: ZEROS,
-                ng: ZEROS,
-                scale: ZEROS,
-                kd: ZEROS,
-                ks: ZEROS,
-                shininess: ZERO,
-            };
+            let mut points = Points::ZERO;
             for (i, sp) in sps.iter().enumerate() {
                 points.set(i, sp);
             }
@@ -240,15 +226,7 @@ fn lane_point_light_is_the_generic_one_to_the_bit() {
         for round in 0..6000 {
             let sps: [SurfacePoint<f32>; WIDTH] =
                 std::array::from_fn(|i| random_point(&mut next, round * WIDTH + i));
-            let mut points = Points {
-                p: ZEROS,
-                n: ZEROS,
-                ng: ZEROS,
-                scale: ZEROS,
-                kd: ZEROS,
-                ks: ZEROS,
-                shininess: ZERO,
-            };
+            let mut points = Points::ZERO;
             let (mut dirs, mut colour) = (ZEROS, ZEROS);
             let mut views = [Vec3::ZERO; WIDTH];
             for (i, sp) in sps.iter().enumerate() {
