@@ -277,17 +277,23 @@ pub(super) fn set_lane(v: &mut V3s, i: usize, x: Vec3) {
     }
 }
 
-/// `trace::make_ray` (at time 0) for a packet's rays, given by lane, in
+/// `trace::make_ray` (at time 0) for the rays whose origins and
+/// directions `soa` holds (the rest of it is filled in here), in
 /// loops over the lanes that fill whole registers: per lane the same
 /// operations on the same values (`safe_dir`'s, `ray_with_inverse`'s axis
 /// choice and shear), so each ray is `make_ray`'s to the bit. Made one
 /// ray at a time, the axis choice's branches mispredicted on shadow rays
 /// and each ray paid two divisions alone.
 #[inline(always)]
-pub(super) fn make_rays(origins: &V3s, dirs: &V3s, soa: &mut Soa) {
-    soa.o = *origins;
-    soa.dir = *dirs;
-    for i in 0..WIDTH {
+pub(super) fn make_rays(soa: &mut Soa) {
+    let Soa {
+        dir: dirs,
+        inv,
+        shear,
+        axes,
+        ..
+    } = soa;
+    for (i, axes) in axes.iter_mut().enumerate() {
         let d = [dirs[0].0[i], dirs[1].0[i], dirs[2].0[i]];
         for (axis, &d) in d.iter().enumerate() {
             // `trace::safe_dir`.
@@ -297,7 +303,7 @@ pub(super) fn make_rays(origins: &V3s, dirs: &V3s, soa: &mut Soa) {
             } else {
                 d
             };
-            soa.inv[axis].0[i] = 1.0 / safe;
+            inv[axis].0[i] = 1.0 / safe;
         }
         let a = [d[0].abs(), d[1].abs(), d[2].abs()];
         let kz: u32 = if a[0] > a[1] && a[0] > a[2] {
@@ -321,10 +327,10 @@ pub(super) fn make_rays(origins: &V3s, dirs: &V3s, soa: &mut Soa) {
         let ky = if kx == 2 { 0 } else { kx + 1 };
         let (kx, ky) = if dz < 0.0 { (ky, kx) } else { (kx, ky) };
         let sz = 1.0 / dz;
-        soa.shear[0].0[i] = pick(kx) * sz;
-        soa.shear[1].0[i] = pick(ky) * sz;
-        soa.shear[2].0[i] = sz;
-        soa.axes[i] = kx | ky << 2 | kz << 4;
+        shear[0].0[i] = pick(kx) * sz;
+        shear[1].0[i] = pick(ky) * sz;
+        shear[2].0[i] = sz;
+        *axes = kx | ky << 2 | kz << 4;
     }
     soa.share_k();
 }
@@ -336,7 +342,7 @@ pub(super) fn make_rays(origins: &V3s, dirs: &V3s, soa: &mut Soa) {
 pub(super) fn pixel_rays(scene: &CpuScene<f32>, pixels: &[[u32; 2]; WIDTH], out: &mut Soa) {
     let (w, h) = (scene.size[0] as f32, scene.size[1] as f32);
     let [hx, hy] = scene.half_extent;
-    let mut dirs = [Lanes([0.0; WIDTH]); 3];
+    let dirs = &mut out.dir;
     for q in 0..QUADS {
         let x = Vec4::from_array(std::array::from_fn(|i| pixels[4 * q + i][0] as f32));
         let y = Vec4::from_array(std::array::from_fn(|i| pixels[4 * q + i][1] as f32));
@@ -350,5 +356,6 @@ pub(super) fn pixel_rays(scene: &CpuScene<f32>, pixels: &[[u32; 2]; WIDTH], out:
         dirs[1].set_quad(q, ndc_y * s);
         dirs[2].set_quad(q, Vec4::NEG_ONE * s);
     }
-    make_rays(&[Lanes([0.0; WIDTH]); 3], &dirs, out);
+    out.o = [Lanes([0.0; WIDTH]); 3];
+    make_rays(out);
 }

@@ -202,9 +202,10 @@ fn mix(v: &[V3s; 3], w: [f32; 3], i: usize) -> [f32; 3] {
 }
 
 /// `trace::shadow_origin` (robust) of every lane towards `target`, and the
-/// direction from it to `target`: the shadow rays of a point light.
+/// direction from it to `target`: the shadow rays of a point light, into
+/// `origin` and `dir`.
 #[inline(always)]
-pub(super) fn shadow_rays(points: &Points, target: Vec3) -> (V3s, V3s) {
+pub(super) fn shadow_rays(points: &Points, target: Vec3, origin: &mut V3s, dir: &mut V3s) {
     // The side of the surface the light is on.
     let mut side = ZEROS;
     for i in 0..WIDTH {
@@ -214,14 +215,12 @@ pub(super) fn shadow_rays(points: &Points, target: Vec3) -> (V3s, V3s) {
             side.0[i] = if toward { ng[a] } else { -ng[a] };
         }
     }
-    let (mut origin, mut dir) = (ZEROS, ZEROS);
     for a in 0..3 {
         offset_lanes(&points.p[a], &side[a], &points.scale[a], &mut origin[a]);
         for i in 0..WIDTH {
             dir[a].0[i] = target[a] - origin[a].0[i];
         }
     }
-    (origin, dir)
 }
 
 /// `Real::offset_ray` of one coordinate of every lane, four at a time

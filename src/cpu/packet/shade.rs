@@ -189,17 +189,17 @@ fn colours_with(
         if lit == 0 {
             continue;
         }
-        let (mut origins, mut to_light) = shadow_rays(points, light.position);
+        shadow_rays(points, light.position, &mut shadows.o, &mut shadows.dir);
         let first = lit.trailing_zeros() as usize;
-        let (o, d) = (lane(&origins, first), lane(&to_light, first));
+        let (o, d) = (lane(&shadows.o, first), lane(&shadows.dir, first));
         let mut each = !lit;
         while each != 0 {
             let i = each.trailing_zeros() as usize;
             each &= each - 1;
-            set_lane(&mut origins, i, o);
-            set_lane(&mut to_light, i, d);
+            set_lane(&mut shadows.o, i, o);
+            set_lane(&mut shadows.dir, i, d);
         }
-        make_rays(&origins, &to_light, shadows);
+        make_rays(shadows);
         count_rays(1, u64::from(lit.count_ones()));
         let blockers = traverse_packet(scene, shadows, lit, 1.0, true);
         let mut clear = 0u32;

@@ -458,13 +458,12 @@ fn packet_rays_match_make_ray() {
             }
             d
         });
-        let (mut o, mut d) = ([Lanes([0.0; WIDTH]); 3], [Lanes([0.0; WIDTH]); 3]);
-        for r in 0..WIDTH {
-            set_lane(&mut o, r, origins[r]);
-            set_lane(&mut d, r, dirs[r]);
-        }
         // Into lanes still holding the packet before's rays.
-        make_rays(&o, &d, &mut got);
+        for r in 0..WIDTH {
+            set_lane(&mut got.o, r, origins[r]);
+            set_lane(&mut got.dir, r, dirs[r]);
+        }
+        make_rays(&mut got);
         let want: [Ray<f32>; WIDTH] = std::array::from_fn(|r| make_ray(origins[r], dirs[r], 0.0));
         for r in 0..WIDTH {
             assert_eq!(bits(&got.ray(r)), bits(&want[r]), "{:?}", dirs[r]);

@@ -205,7 +205,8 @@ fn lane_shadow_rays_are_the_generic_ones_to_the_bit() {
                 0 => sps[round % WIDTH].p,
                 _ => Vec3::new(next(), next(), next()) * 20.0,
             };
-            let (origin, dir) = shadow_rays(&points, target);
+            let (mut origin, mut dir) = (ZEROS, ZEROS);
+            shadow_rays(&points, target, &mut origin, &mut dir);
             for (i, sp) in sps.iter().enumerate() {
                 let want = shadow_origin(&cpu, sp, target);
                 assert_eq!(bits(lane(&origin, i)), bits(want), "round {round} lane {i}");
