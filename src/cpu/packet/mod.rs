@@ -19,6 +19,8 @@
 
 mod avx2;
 mod avx512;
+#[cfg(test)]
+mod lane_tests;
 mod lanes;
 mod points;
 mod shade;

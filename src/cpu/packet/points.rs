@@ -20,11 +20,8 @@ use crate::cpu::trace::{pow_c, CpuScene, Hit, SurfacePoint};
 use crate::cpu::Real;
 use glam::Vec3;
 
-#[cfg(test)]
-mod tests;
-
-const ZERO: Lanes = Lanes([0.0; WIDTH]);
-const ZEROS: V3s = [ZERO; 3];
+pub(super) const ZERO: Lanes = Lanes([0.0; WIDTH]);
+pub(super) const ZEROS: V3s = [ZERO; 3];
 
 /// A packet's surface points (`SurfacePoint`), by component.
 #[derive(Clone, Copy)]

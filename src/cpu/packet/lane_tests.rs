@@ -1,13 +1,16 @@
-//! The lanes' shading against the single ray's, to the bit, compiled for
-//! SSE (four lanes a register) and, where the CPU has it, for AVX2 (eight).
+//! The lanes' shading (`points`) against the single ray's, to the bit,
+//! compiled for SSE (four lanes a register) and, where the CPU has it,
+//! for AVX2 (eight).
 
-use super::*;
+use super::lanes::{lane, set_lane, WIDTH};
+use super::points::*;
 use crate::bvh::Bvh;
 use crate::cpu::trace::make_ray;
 use crate::cpu::trace::{point_shading, shadow_origin, surface_point, CpuGeometry, NO_HIT};
+use crate::cpu::trace::{CpuScene, Hit, SurfacePoint};
 use crate::cpu::CpuOptions;
 use crate::scene::{Material, Scene, Triangle, Vertex};
-use glam::DVec3;
+use glam::{DVec3, Vec3};
 
 /// Uniform numbers in [-1, 1), replayable from `seed`.
 fn uniform(seed: u32) -> impl FnMut() -> f32 {
