@@ -188,6 +188,34 @@ macro_rules! crossing {
     }};
 }
 
+#[cfg(target_arch = "x86_64")]
+/// The new hits of octet `g`'s rays in `found`: lane i's t, b1 and b2 at
+/// `out[..][i]` and its primitive `prim(i)`. Returns `found` as the
+/// packet's ray bits.
+#[inline(always)]
+fn keep_hits(
+    (g, found): (usize, u32),
+    out: &[[f32; 8]; 3],
+    prim: impl Fn(usize) -> u32,
+    best: &mut [Hit<f32>; WIDTH],
+    best_t: &mut Lanes,
+) -> u32 {
+    let mut each = found;
+    while each != 0 {
+        let i = each.trailing_zeros() as usize;
+        each &= each - 1;
+        let r = 8 * g + i;
+        best[r] = Hit {
+            t: out[0][i],
+            prim: prim(i),
+            b1: out[1][i],
+            b2: out[2][i],
+        };
+        best_t.0[r] = out[0][i];
+    }
+    found << (8 * g)
+}
+
 /// One triangle (`tri`, primitive `prim`) against the rays of octet `g`
 /// in `m8` that share the axis order `k`, eight at a time with AVX2: each
 /// ray `trace::hit_triangle`'s answer against its own nearest hit so far,
@@ -229,20 +257,7 @@ pub(super) fn hit_triangle_octet(
         // SAFETY: eight f32 written unaligned into eight.
         unsafe { _mm256_storeu_ps(out.as_mut_ptr(), x) };
     }
-    let mut each = found;
-    while each != 0 {
-        let i = each.trailing_zeros() as usize;
-        each &= each - 1;
-        let r = 8 * g + i;
-        best[r] = Hit {
-            t: out[0][i],
-            prim,
-            b1: out[1][i],
-            b2: out[2][i],
-        };
-        best_t.0[r] = out[0][i];
-    }
-    found << (8 * g)
+    keep_hits((g, found), &out, |_| prim, best, best_t)
 }
 
 /// A leaf block's triangles against the rays of octet `g` in `m8` that
@@ -268,10 +283,9 @@ pub(super) fn hit_block_octet(
 ) -> u32 {
     use std::arch::x86_64::*;
     let [kx, ky, kz] = k;
-    // The octet's nearest hits, lane i for ray 8g + i.
-    let mut t_out = [0.0f32; 8];
-    let mut b1_out = [0.0f32; 8];
-    let mut b2_out = [0.0f32; 8];
+    // The octet's nearest hits (t, b1, b2) and their triangles, lane i
+    // for ray 8g + i.
+    let mut out = [[0.0f32; 8]; 3];
     let mut which = [0i32; 8];
     let rays = Octet::load(soa, k, g);
     // SAFETY: `Lanes` is 64-byte aligned (32 would do here) and holds
@@ -310,25 +324,13 @@ pub(super) fn hit_block_octet(
         }
         let found = !(_mm256_movemask_ps(_mm256_castsi256_ps(run_k)) as u32) & m8;
         if found != 0 {
-            _mm256_storeu_ps(t_out.as_mut_ptr(), run_t);
-            _mm256_storeu_ps(b1_out.as_mut_ptr(), run_b1);
-            _mm256_storeu_ps(b2_out.as_mut_ptr(), run_b2);
+            _mm256_storeu_ps(out[0].as_mut_ptr(), run_t);
+            _mm256_storeu_ps(out[1].as_mut_ptr(), run_b1);
+            _mm256_storeu_ps(out[2].as_mut_ptr(), run_b2);
             _mm256_storeu_si256(which.as_mut_ptr().cast(), run_k);
         }
         found
     };
-    let mut each = found;
-    while each != 0 {
-        let i = each.trailing_zeros() as usize;
-        each &= each - 1;
-        let r = 8 * g + i;
-        best[r] = Hit {
-            t: t_out[i],
-            prim: block.prims[which[i] as usize],
-            b1: b1_out[i],
-            b2: b2_out[i],
-        };
-        best_t.0[r] = t_out[i];
-    }
-    found << (8 * g)
+    let prim = |i: usize| block.prims[which[i] as usize];
+    keep_hits((g, found), &out, prim, best, best_t)
 }

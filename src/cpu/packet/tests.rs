@@ -325,16 +325,7 @@ fn octet_triangle_test_matches_the_block_test() {
             let Some(k) = *k else { continue };
             octets += 1;
             let m8 = (next().to_bits() >> 3 | 0x11) & 255;
-            let mut best = [Hit {
-                t: 0.0,
-                prim: NO_HIT,
-                b1: 0.0,
-                b2: 0.0,
-            }; WIDTH];
-            let mut best_t = Lanes(limit);
-            for (r, h) in best.iter_mut().enumerate() {
-                h.t = limit[r];
-            }
+            let (mut best, mut best_t) = no_hits(&limit);
             // SAFETY: the CPU has AVX2, checked above.
             let found = unsafe { hit_block_octet(&block, &soa, k, g, m8, &mut best, &mut best_t) };
             for i in 0..8 {
@@ -369,16 +360,7 @@ fn octet_triangle_test_matches_the_block_test() {
             // Each triangle alone (a leaf that is no block): each ray
             // `hit_triangle`'s answer, kept where nearer than its limit.
             for (j, tri) in corners.iter().enumerate().take(used) {
-                let mut best = [Hit {
-                    t: 0.0,
-                    prim: NO_HIT,
-                    b1: 0.0,
-                    b2: 0.0,
-                }; WIDTH];
-                let mut best_t = Lanes(limit);
-                for (r, h) in best.iter_mut().enumerate() {
-                    h.t = limit[r];
-                }
+                let (mut best, mut best_t) = no_hits(&limit);
                 let prim = 10 + j as u32;
                 // SAFETY: the CPU has AVX2, checked above.
                 let found = unsafe {
@@ -407,6 +389,17 @@ fn octet_triangle_test_matches_the_block_test() {
         hits > 20_000 && misses > 20_000 && octets > 8_000,
         "{hits} hits, {misses} misses, {octets} octets"
     );
+}
+
+/// Rays that have found nothing before their limits `limit`.
+fn no_hits(limit: &[f32; WIDTH]) -> ([Hit<f32>; WIDTH], Lanes) {
+    let best = std::array::from_fn(|r| Hit {
+        t: limit[r],
+        prim: NO_HIT,
+        b1: 0.0,
+        b2: 0.0,
+    });
+    (best, Lanes(*limit))
 }
 
 /// Every field of a ray, as bits.
