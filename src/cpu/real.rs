@@ -161,39 +161,40 @@ pub trait Real:
     }
 }
 
-/// `Real::offset_ray` one coordinate at a time, as the free function
-/// `$name`: f64's, and f32's off x86-64 (and there the definition that
-/// `offset_ray_sse2` must match).
+/// `Real::offset_ray` one coordinate at a time, as the free functions
+/// `$name` (a vector) and `$coord` (one coordinate): f64's, and f32's off
+/// x86-64 (and there the definition that `offset_sse2` must match).
 macro_rules! scalar_offset_ray {
-    ($name:ident, $t:ty, $v:ty, $i:ty) => {
-        fn $name(p: $v, n: $v, scale: $v) -> $v {
-            let off = |p: $t, n: $t, scale: $t| -> $t {
-                // Truncation toward zero, as the shader's vec3<i32>(f32).
-                let of_i = (<$t>::OFFSET_INT_SCALE * n) as $i;
-                let bits = p.to_bits() as $i;
-                let moved = if p < 0.0 {
-                    bits.wrapping_sub(of_i)
-                } else {
-                    bits.wrapping_add(of_i)
-                };
-                if p.abs() < <$t>::OFFSET_ORIGIN * scale {
-                    p + <$t>::OFFSET_FLOAT_SCALE * scale * n
-                } else {
-                    <$t>::from_bits(moved as _)
-                }
+    ($name:ident, $coord:ident, $t:ty, $v:ty, $i:ty) => {
+        pub(crate) fn $coord(p: $t, n: $t, scale: $t) -> $t {
+            // Truncation toward zero, as the shader's vec3<i32>(f32).
+            let of_i = (<$t>::OFFSET_INT_SCALE * n) as $i;
+            let bits = p.to_bits() as $i;
+            let moved = if p < 0.0 {
+                bits.wrapping_sub(of_i)
+            } else {
+                bits.wrapping_add(of_i)
             };
+            if p.abs() < <$t>::OFFSET_ORIGIN * scale {
+                p + <$t>::OFFSET_FLOAT_SCALE * scale * n
+            } else {
+                <$t>::from_bits(moved as _)
+            }
+        }
+
+        fn $name(p: $v, n: $v, scale: $v) -> $v {
             <$v>::new(
-                off(p.x, n.x, scale.x),
-                off(p.y, n.y, scale.y),
-                off(p.z, n.z, scale.z),
+                $coord(p.x, n.x, scale.x),
+                $coord(p.y, n.y, scale.y),
+                $coord(p.z, n.z, scale.z),
             )
         }
     };
 }
 
-scalar_offset_ray!(offset_ray_f64, f64, DVec3, i64);
+scalar_offset_ray!(offset_ray_f64, offset_f64, f64, DVec3, i64);
 #[cfg(any(test, not(target_arch = "x86_64")))]
-scalar_offset_ray!(offset_ray_f32_scalar, f32, Vec3, i32);
+scalar_offset_ray!(offset_ray_f32_scalar, offset_f32_scalar, f32, Vec3, i32);
 
 macro_rules! impl_real {
     ($t:ty, $v:ty, $eps_ratio:expr $(, $extra:item)*) => {

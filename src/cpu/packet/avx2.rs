@@ -188,10 +188,10 @@ macro_rules! crossing {
     }};
 }
 
-#[cfg(target_arch = "x86_64")]
 /// The new hits of octet `g`'s rays in `found`: lane i's t, b1 and b2 at
 /// `out[..][i]` and its primitive `prim(i)`. Returns `found` as the
 /// packet's ray bits.
+#[cfg(target_arch = "x86_64")]
 #[inline(always)]
 fn keep_hits(
     (g, found): (usize, u32),

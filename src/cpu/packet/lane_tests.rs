@@ -2,7 +2,7 @@
 //! compiled for SSE (four lanes a register) and, where the CPU has it,
 //! for AVX2 (eight).
 
-use super::lanes::{lane, set_lane, WIDTH};
+use super::lanes::{lane, set_lane, WIDTH, ZEROS};
 use super::points::*;
 use crate::bvh::Bvh;
 use crate::cpu::trace::make_ray;

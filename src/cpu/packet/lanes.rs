@@ -37,6 +37,8 @@ pub(super) const QUADS: usize = WIDTH / 4;
 pub(super) struct Lanes(pub(super) [f32; WIDTH]);
 
 impl Lanes {
+    pub(super) const ZERO: Lanes = Lanes([0.0; WIDTH]);
+
     #[inline(always)]
     pub(super) fn quad(&self, h: usize) -> Vec4 {
         Vec4::from_slice(&self.0[4 * h..4 * h + 4])
@@ -76,10 +78,10 @@ fn unpack_k(a: u32) -> [usize; 3] {
 impl Soa {
     /// No rays yet: space for `make_rays`, kept from packet to packet.
     pub(super) const EMPTY: Soa = Soa {
-        o: [Lanes([0.0; WIDTH]); 3],
-        dir: [Lanes([0.0; WIDTH]); 3],
-        inv: [Lanes([0.0; WIDTH]); 3],
-        shear: [Lanes([0.0; WIDTH]); 3],
+        o: ZEROS,
+        dir: ZEROS,
+        inv: ZEROS,
+        shear: ZEROS,
         k: [None; WIDTH / 8],
         axes: [0; WIDTH],
     };
@@ -198,7 +200,7 @@ impl Children {
     /// No ray in any box yet.
     pub(super) const NONE: Children = Children {
         hits: [0; 4],
-        near: [Lanes([0.0; WIDTH]); 4],
+        near: [Lanes::ZERO; 4],
         nearest: [f32::INFINITY; 4],
     };
 
@@ -262,6 +264,8 @@ pub(super) fn prefetch<T>(items: &[T]) {
 
 /// Three components of one vector per ray.
 pub(super) type V3s = [Lanes; 3];
+
+pub(super) const ZEROS: V3s = [Lanes::ZERO; 3];
 
 /// `v`'s lane `i` as a vector.
 #[inline(always)]
@@ -330,7 +334,7 @@ pub(super) fn make_rays(soa: &mut Soa) {
         shear[0].0[i] = pick(kx) * sz;
         shear[1].0[i] = pick(ky) * sz;
         shear[2].0[i] = sz;
-        *axes = kx | ky << 2 | kz << 4;
+        *axes = pack_k([kx as usize, ky as usize, kz as usize]);
     }
     soa.share_k();
 }
@@ -356,6 +360,6 @@ pub(super) fn pixel_rays(scene: &CpuScene<f32>, pixels: &[[u32; 2]; WIDTH], out:
         dirs[1].set_quad(q, ndc_y * s);
         dirs[2].set_quad(q, Vec4::NEG_ONE * s);
     }
-    out.o = [Lanes([0.0; WIDTH]); 3];
+    out.o = ZEROS;
     make_rays(out);
 }

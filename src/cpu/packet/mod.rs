@@ -30,7 +30,7 @@ mod tests;
 mod walk;
 
 pub use lanes::WIDTH;
-pub use shade::{colours, fill_band, TILE};
+pub use shade::{fill_band, TILE};
 pub use walk::traverse;
 
 use crate::cpu::trace::CpuScene;

@@ -14,14 +14,9 @@
 //! before, and the horizontal sums of its dot products wasted the
 //! register's width.
 
-use super::lanes::{lane, set_lane, Lanes, V3s, WIDTH};
+use super::lanes::{lane, set_lane, Lanes, V3s, WIDTH, ZEROS};
 use crate::cpu::trace::{pow_c, CpuScene, Hit, SurfacePoint};
-#[cfg(not(target_arch = "x86_64"))]
-use crate::cpu::Real;
 use glam::Vec3;
-
-pub(super) const ZERO: Lanes = Lanes([0.0; WIDTH]);
-pub(super) const ZEROS: V3s = [ZERO; 3];
 
 /// A packet's surface points (`SurfacePoint`), by component.
 #[derive(Clone, Copy)]
@@ -35,18 +30,6 @@ pub(super) struct Points {
     pub(super) shininess: Lanes,
 }
 
-impl Corners {
-    pub(super) const ZERO: Corners = Corners {
-        pos: [ZEROS; 3],
-        normal: [ZEROS; 3],
-        kd: [ZEROS; 3],
-        ks: [ZEROS; 3],
-        shininess: [ZERO; 3],
-        b1: ZERO,
-        b2: ZERO,
-    };
-}
-
 impl Points {
     pub(super) const ZERO: Points = Points {
         p: ZEROS,
@@ -55,7 +38,7 @@ impl Points {
         scale: ZEROS,
         kd: ZEROS,
         ks: ZEROS,
-        shininess: ZERO,
+        shininess: Lanes::ZERO,
     };
 
     /// Lane `i`'s point.
@@ -100,6 +83,18 @@ pub(super) struct Corners {
     b2: Lanes,
 }
 
+impl Corners {
+    pub(super) const ZERO: Corners = Corners {
+        pos: [ZEROS; 3],
+        normal: [ZEROS; 3],
+        kd: [ZEROS; 3],
+        ks: [ZEROS; 3],
+        shininess: [Lanes::ZERO; 3],
+        b1: Lanes::ZERO,
+        b2: Lanes::ZERO,
+    };
+}
+
 /// `trace::safe_normalize` of lane `i` (its dot product left to right,
 /// then one division by the square root), `fallback` where `v` has no
 /// length.
@@ -122,8 +117,9 @@ fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
 
 /// The surface points of the triangle hits in `lanes` (each the robust
 /// method's `surface_point`, nothing moving), every lane of `points`
-/// written: the others hold what zeros give, for the caller to overwrite
-/// (a store in every lane is what lets the loop fill whole registers).
+/// written: the others from whatever `c` held there, for the caller to
+/// overwrite or ignore (a store in every lane is what lets the loop fill
+/// whole registers).
 #[inline(always)]
 pub(super) fn triangle_points(
     scene: &CpuScene<f32>,
@@ -238,25 +234,12 @@ fn offset_lanes(p: &Lanes, n: &Lanes, scale: &Lanes, out: &mut Lanes) {
     }
 }
 
-/// `Real::offset_ray` of one coordinate of every lane (`real.rs`'s scalar
-/// definition, its saturating `as i32` included).
+/// `Real::offset_ray` of one coordinate of every lane, one at a time.
 #[cfg(not(target_arch = "x86_64"))]
 #[inline(always)]
 fn offset_lanes(p: &Lanes, n: &Lanes, scale: &Lanes, out: &mut Lanes) {
     for i in 0..WIDTH {
-        let (p, n, scale) = (p.0[i], n.0[i], scale.0[i]);
-        let of_i = (f32::OFFSET_INT_SCALE * n) as i32;
-        let bits = p.to_bits() as i32;
-        let moved = if p < 0.0 {
-            bits.wrapping_sub(of_i)
-        } else {
-            bits.wrapping_add(of_i)
-        };
-        out.0[i] = if p.abs() < f32::OFFSET_ORIGIN * scale {
-            p + f32::OFFSET_FLOAT_SCALE * scale * n
-        } else {
-            f32::from_bits(moved as u32)
-        };
+        out.0[i] = crate::cpu::real::offset_f32_scalar(p.0[i], n.0[i], scale.0[i]);
     }
 }
 
@@ -272,8 +255,8 @@ pub(super) fn add_point_light(
     color: Vec3,
     colour: &mut V3s,
 ) {
-    let mut rv = ZERO;
-    let mut ln = ZERO;
+    let mut rv = Lanes::ZERO;
+    let mut ln = Lanes::ZERO;
     for i in 0..WIDTH {
         let (p, n, dir) = (at(&points.p, i), at(&points.n, i), at(dir, i));
         let view = [-dir[0], -dir[1], -dir[2]];
@@ -287,7 +270,7 @@ pub(super) fn add_point_light(
         ln.0[i] = d;
         rv.0[i] = dot(r, view).max(0.0);
     }
-    let mut spec = ZERO;
+    let mut spec = Lanes::ZERO;
     let mut each = lit;
     while each != 0 {
         let i = each.trailing_zeros() as usize;

@@ -62,7 +62,7 @@ pub fn fill_band(
 
 /// A packet's working space, kept from packet to packet so that no
 /// packet pays for clearing its 12 KB (`Corners`, `Soa`).
-pub struct Scratch {
+struct Scratch {
     corners: Corners,
     points: Points,
     primary: Soa,
@@ -74,11 +74,7 @@ pub struct Scratch {
 /// pixels that hit something; area lights, lights on surfaces and
 /// reflections one pixel at a time, as `shade_phong` and `radiance` take
 /// them.
-pub fn colours(
-    scene: &CpuScene<f32>,
-    pixels: &[[u32; 2]],
-    scratch: &mut Scratch,
-) -> [[f32; 3]; WIDTH] {
+fn colours(scene: &CpuScene<f32>, pixels: &[[u32; 2]], scratch: &mut Scratch) -> [[f32; 3]; WIDTH] {
     #[cfg(target_arch = "x86_64")]
     if std::arch::is_x86_feature_detected!("avx2") {
         // SAFETY: the CPU has AVX2, checked just above.
@@ -153,7 +149,7 @@ fn colours_with(
         each &= each - 1;
         points.set(i, &surface_point(scene, &primary.ray(i), &hits[i]));
     }
-    let mut colour = [Lanes([0.0; WIDTH]); 3];
+    let mut colour = ZEROS;
     for (a, colour) in colour.iter_mut().enumerate() {
         for i in 0..WIDTH {
             colour.0[i] = if lit >> i & 1 != 0 {

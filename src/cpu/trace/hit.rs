@@ -19,11 +19,7 @@ thread_local! {
 
 #[inline]
 pub(crate) fn count_ray(kind: usize) {
-    RAYS.with(|r| {
-        let mut v = r.get();
-        v[kind] += 1;
-        r.set(v);
-    });
+    count_rays(kind, 1);
 }
 
 /// `count_ray` for `n` rays at once (a packet's).
