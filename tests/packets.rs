@@ -12,7 +12,7 @@ use glint::bvh::Bvh;
 use glint::camera::Camera;
 use glint::cpu::packet::{self, WIDTH};
 use glint::cpu::trace::{pixel_ray, traverse, CpuScene, Ray};
-use glint::cpu::{CpuOptions, Geometry};
+use glint::cpu::{CpuOptions, Geometry, Keep};
 use glint::methods::Methods;
 use glint::scene::{Effects, Scene};
 
@@ -39,10 +39,9 @@ fn assert_packets_agree(name: &str, scene: &Scene, camera: &Camera, methods: Met
     };
     let taken = glint::cpu::packet::applies(&CpuScene::new(scene, &bvh, g, camera, &options(true)));
     assert!(taken, "{name}: the packets do not take this scene");
-    let every = &|_: u32, _: u32| true;
     // Some pixels left out, as a crop or a progressive pass leaves them.
     let some = &|x: u32, y: u32| !(x * 7 + y * 3).is_multiple_of(5);
-    for keep in [every as &(dyn Fn(u32, u32) -> bool + Sync), some] {
+    for keep in [Keep::EVERY, Keep::Where(some)] {
         let render = |packets| {
             glint::cpu::render_where(
                 scene,
@@ -76,7 +75,7 @@ fn assert_packets_agree(name: &str, scene: &Scene, camera: &Camera, methods: Met
             let (x0, y0) = (x - x % tw, y - y % th);
             let pixels: Vec<[u32; 2]> = (y0..(y0 + th).min(camera.height))
                 .flat_map(|py| (x0..(x0 + tw).min(camera.width)).map(move |px| [px, py]))
-                .filter(|&[px, py]| keep(px, py))
+                .filter(|&[px, py]| keep.pixel(px, py))
                 .collect();
             let lane = pixels.iter().position(|&p| p == [x, y]).expect("kept");
             let rays: [Ray<f32>; WIDTH] = std::array::from_fn(|k| {

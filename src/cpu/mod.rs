@@ -2,6 +2,7 @@
 //! function names), parallel over rows with rayon, in f32 (the shader's twin)
 //! or f64 (ground truth).
 
+mod bands;
 mod options;
 pub mod packet;
 mod real;
@@ -9,19 +10,18 @@ pub mod sample;
 mod simd;
 pub mod trace;
 
+use bands::Bands;
+pub use bands::{spread_order, Keep, Out, Work};
 pub use options::{CpuOptions, Precision};
 pub use real::Real;
-
-use std::time::Duration;
 
 use rayon::prelude::*;
 
 use crate::bvh::Bvh;
 use crate::camera::Camera;
-use crate::images::framebuffer::{to_u8, Framebuffer, Image};
+use crate::images::framebuffer::{Framebuffer, Image};
 use crate::probe::{PathLight, PathRecord, PathSurface, ProbeImage, ProbePixel};
 use crate::scene::Scene;
-use image::RgbImage;
 use trace::{
     centre_key, light_term, pixel_color, pixel_ray, surface_point, trace_primary, CpuGeometry,
     CpuScene,
@@ -44,7 +44,7 @@ pub fn render(
         &geometry,
         camera,
         options,
-        &|_, _| true,
+        Keep::EVERY,
         progress,
     )
     .0
@@ -60,23 +60,31 @@ pub fn render_where(
     geometry: &Geometry,
     camera: &Camera,
     options: &CpuOptions,
-    keep: &(dyn Fn(u32, u32) -> bool + Sync),
+    keep: Keep,
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> (Framebuffer, Work) {
     let rows = 0..camera.height;
     let (image, work) = render_rows(
-        scene, bvh, geometry, camera, options, rows, keep, progress, false,
+        scene,
+        bvh,
+        geometry,
+        camera,
+        options,
+        rows,
+        keep,
+        progress,
+        Out::Float,
     );
     (image.into_float(), work)
 }
 
 /// As `render_where`, knowing that every pixel `keep` takes lies in `rows`
 /// (the others are not visited at all: a part of a large image pays for its
-/// own rows only, not for asking `keep` of every pixel), into the 8-bit
-/// image when `eight_bit` (each band turned to bytes on its own thread as
-/// soon as it is rendered, `to_u8`: the float image is never whole, and at
-/// 1080p the separate conversion's 6 ms and 24 MB are gone), else into the
-/// float one.
+/// own rows only, not for asking `keep` of every pixel), into what `out`
+/// says: the float image, or the 8-bit one with each band turned to bytes
+/// on its own thread as soon as it is rendered (`to_u8`: the float image is
+/// never whole, and at 1080p the separate conversion's 6 ms and 24 MB are
+/// gone), its strips handed on as they are finished where `out` asks.
 #[allow(clippy::too_many_arguments)]
 pub fn render_rows(
     scene: &Scene,
@@ -85,23 +93,20 @@ pub fn render_rows(
     camera: &Camera,
     options: &CpuOptions,
     rows: std::ops::Range<u32>,
-    keep: &(dyn Fn(u32, u32) -> bool + Sync),
+    keep: Keep,
     progress: &(dyn Fn(u64, u64) + Sync),
-    eight_bit: bool,
+    out: Out,
 ) -> (Image, Work) {
-    fn colour<R: Real>(s: &CpuScene<R>, x: u32, y: u32) -> [f32; 3] {
-        R::v3_to_f32(R::clamp01(pixel_color(s, x, y)))
-    }
     fn pixels<'k, R: Real>(
         s: &CpuScene<R>,
-        keep: &'k (dyn Fn(u32, u32) -> bool + Sync),
+        keep: Keep<'k>,
     ) -> impl Fn(&CpuScene<R>, u32, &mut [[f32; 3]]) + Sync + 'k {
         let w = s.size[0] as usize;
         move |s, y, row| {
             for (x, px) in row[..w].iter_mut().enumerate() {
                 let x = x as u32;
-                *px = if keep(x, y) {
-                    colour(s, x, y)
+                *px = if keep.pixel(x, y) {
+                    R::v3_to_f32(R::clamp01(pixel_color(s, x, y)))
                 } else {
                     [0.0; 3]
                 };
@@ -111,7 +116,8 @@ pub fn render_rows(
     let to = Bands {
         progress,
         active: rows,
-        eight_bit,
+        keep,
+        out,
     };
     match geometry {
         Geometry::F32(g) => {
@@ -129,63 +135,6 @@ pub fn render_rows(
             to.render(&s, 1, pixels(&s, keep))
         }
     }
-}
-
-/// Which rows a render's bands cover, who hears of them, and what they
-/// become.
-struct Bands<'a> {
-    progress: &'a (dyn Fn(u64, u64) + Sync),
-    active: std::ops::Range<u32>,
-    eight_bit: bool,
-}
-
-impl Bands<'_> {
-    /// The image `fill(scene, y0, band)` makes, `rows` rows a band.
-    fn render<R: Real>(
-        &self,
-        scene: &CpuScene<R>,
-        rows: u32,
-        fill: impl Fn(&CpuScene<R>, u32, &mut [[f32; 3]]) + Sync,
-    ) -> (Image, Work) {
-        let [width, height] = scene.size;
-        if !self.eight_bit {
-            let (pixels, work) = per_band(scene, self.progress, rows, self.active.clone(), fill);
-            let fb = Framebuffer {
-                width,
-                height,
-                pixels,
-            };
-            return (Image::Float(fb), work);
-        }
-        let mut bytes = vec![0u8; 3 * width as usize * height as usize];
-        let work = for_bands(
-            scene,
-            self.progress,
-            rows,
-            self.active.clone(),
-            &mut bytes,
-            3,
-            |scene, y0, out: &mut [u8]| {
-                let mut band = vec![[0.0f32; 3]; out.len() / 3];
-                fill(scene, y0, &mut band);
-                for (o, &v) in out.iter_mut().zip(bytemuck::cast_slice::<_, f32>(&band)) {
-                    *o = to_u8(v);
-                }
-            },
-        );
-        let image = RgbImage::from_raw(width, height, bytes).expect("3 bytes a pixel");
-        (Image::Rgb8(image), work)
-    }
-}
-
-/// What a render's threads did besides their pixels.
-#[derive(Clone, Copy, Debug, Default, PartialEq)]
-pub struct Work {
-    /// Closest-hit and shadow rays cast.
-    pub rays: [u64; 2],
-    /// CPU time the threads spent on the pixels, summed over threads
-    /// (`timing::thread_cpu_time`); None where the system cannot say.
-    pub cpu_time: Option<Duration>,
 }
 
 /// A scene's primitives and wide tree as the CPU reference reads them, in
@@ -331,7 +280,7 @@ fn path_in<R: Real>(scene: &CpuScene<R>, [x, y]: [u32; 2]) -> PathRecord {
     record
 }
 
-/// `f(scene, x, y)` for every pixel, rows in parallel (`per_band`). Also
+/// `f(scene, x, y)` for every pixel, rows in parallel (`Bands::per_band`). Also
 /// returns what the threads did (`Work`).
 fn per_pixel<R: Real, T: Send + Default + Clone>(
     scene: &CpuScene<R>,
@@ -340,112 +289,21 @@ fn per_pixel<R: Real, T: Send + Default + Clone>(
     f: impl Fn(&CpuScene<R>, u32, u32) -> T + Sync,
 ) -> (Vec<T>, Work) {
     let w = scene.size[0] as usize;
-    per_band(scene, progress, 1, active, |scene, y, row| {
+    let bands = Bands {
+        progress,
+        active,
+        keep: Keep::EVERY,
+        out: Out::Float,
+    };
+    bands.per_band(scene, 1, |scene, y, row| {
         for (x, px) in row[..w].iter_mut().enumerate() {
             *px = f(scene, x as u32, y);
         }
     })
 }
 
-/// `f(scene, y0, band)` fills each band of `rows` rows from row `y0` (the
-/// last may have fewer; `T::default()` to start with), bands in parallel,
-/// taken in `spread_order` so that `progress(rows_done, rows)` advances at
-/// an even pace: rows in order would finish the cheap sky first and the
-/// costly floor last, and an ETA from them would be wrong by the ratio.
-/// Bands that miss the rows `active` are left as they start.
-/// Also returns the rays `f` cast and the threads' CPU time (`Work`).
-fn per_band<R: Real, T: Send + Default + Clone>(
-    scene: &CpuScene<R>,
-    progress: &(dyn Fn(u64, u64) + Sync),
-    rows: u32,
-    active: std::ops::Range<u32>,
-    f: impl Fn(&CpuScene<R>, u32, &mut [T]) + Sync,
-) -> (Vec<T>, Work) {
-    let [w, h] = scene.size;
-    let mut out = vec![T::default(); w as usize * h as usize];
-    let work = for_bands(scene, progress, rows, active, &mut out, 1, f);
-    (out, work)
-}
-
-/// `per_band`'s bands over `out`, which holds `per_pixel` elements a pixel.
-fn for_bands<R: Real, U: Send>(
-    scene: &CpuScene<R>,
-    progress: &(dyn Fn(u64, u64) + Sync),
-    rows: u32,
-    active: std::ops::Range<u32>,
-    out: &mut [U],
-    per_pixel: usize,
-    f: impl Fn(&CpuScene<R>, u32, &mut [U]) + Sync,
-) -> Work {
-    use std::sync::atomic::{AtomicU64, Ordering};
-    let [w, h] = scene.size;
-    let rows = rows.max(1);
-    let done = AtomicU64::new(0);
-    let rays = [AtomicU64::new(0), AtomicU64::new(0)];
-    let cpu_ns = AtomicU64::new(0);
-    let row_len = w as usize * per_pixel;
-    let mut bands: Vec<Option<&mut [U]>> = out
-        .chunks_mut((row_len * rows as usize).max(1))
-        .map(Some)
-        .collect();
-    let ordered: Vec<(u32, &mut [U])> = spread_order(bands.len() as u32)
-        .into_iter()
-        .filter(|&b| b * rows < active.end && (b + 1) * rows > active.start)
-        .filter_map(|b| Some((b * rows, bands[b as usize].take()?)))
-        .collect();
-    let visited =
-        ordered.iter().map(|(_, b)| b.len() as u64).sum::<u64>() / (row_len.max(1) as u64);
-    done.store(u64::from(h) - visited, Ordering::Relaxed);
-    ordered.into_par_iter().for_each(|(y0, band)| {
-        // A band runs on one thread from start to end, so the thread's
-        // counters moved by this band's rays alone.
-        let before = trace::rays_cast();
-        let started = crate::timing::thread_cpu_time();
-        let n = band.len() as u64 / (row_len.max(1) as u64);
-        f(scene, y0, band);
-        if let (Some(a), Some(b)) = (started, crate::timing::thread_cpu_time()) {
-            cpu_ns.fetch_add(b.saturating_sub(a).as_nanos() as u64, Ordering::Relaxed);
-        }
-        let after = trace::rays_cast();
-        for k in 0..2 {
-            rays[k].fetch_add(after[k] - before[k], Ordering::Relaxed);
-        }
-        let finished = done.fetch_add(n, Ordering::Relaxed) + n;
-        progress(finished, u64::from(h));
-    });
-    Work {
-        rays: rays.map(AtomicU64::into_inner),
-        // The clock is the system's: there for every band or for none.
-        cpu_time: crate::timing::thread_cpu_time()
-            .map(|_| Duration::from_nanos(cpu_ns.into_inner())),
-    }
-}
-
-/// The rows 0..n in an order whose every stretch is spread over the whole
-/// image: row (i * s) mod n, with the stride s near n / golden ratio and
-/// coprime to n (so each row comes once).
-pub fn spread_order(n: u32) -> Vec<u32> {
-    if n < 3 {
-        return (0..n).collect();
-    }
-    let gcd = |mut a: u64, mut b: u64| {
-        while b != 0 {
-            (a, b) = (b, a % b);
-        }
-        a
-    };
-    let mut stride = ((f64::from(n) * 0.618_033_988_75) as u64).max(1);
-    while gcd(stride, u64::from(n)) != 1 {
-        stride += 1;
-    }
-    (0..u64::from(n))
-        .map(|i| ((i * stride) % u64::from(n)) as u32)
-        .collect()
-}
-
 #[cfg(test)]
 mod tests {
-    use super::spread_order;
 
     /// A render says how much CPU time its threads spent where the system
     /// has a thread clock: some, and no more than all its threads could
@@ -468,7 +326,7 @@ mod tests {
                 &geometry,
                 &camera,
                 &options,
-                &|_, _| true,
+                super::Keep::EVERY,
                 &|_, _| {},
             );
             let wall = wall.elapsed();
@@ -483,32 +341,6 @@ mod tests {
                 }
                 None if cfg!(unix) => panic!("no CPU time where unix has a thread clock"),
                 None => {}
-            }
-        }
-    }
-
-    /// Each row once, and any stretch of the order is spread evenly: the
-    /// first eighth of the work touches every eighth of the image.
-    #[test]
-    fn spread_order_is_a_permutation_spread_over_the_image() {
-        for n in [0, 1, 2, 3, 7, 30, 240, 480, 1000, 1024, 16384] {
-            let order = spread_order(n);
-            let mut seen = order.clone();
-            seen.sort_unstable();
-            assert_eq!(seen, (0..n).collect::<Vec<_>>(), "n = {n}");
-            if n >= 64 {
-                let eighth = (n / 8) as usize;
-                for start in [0, eighth, 3 * eighth] {
-                    let mut bands = [0u32; 8];
-                    for &y in &order[start..start + eighth] {
-                        bands[(y * 8 / n) as usize] += 1;
-                    }
-                    let (lo, hi) = (bands.iter().min().unwrap(), bands.iter().max().unwrap());
-                    assert!(
-                        *lo > 0 && hi - lo <= eighth as u32 / 4 + 2,
-                        "n = {n}: {bands:?}"
-                    );
-                }
             }
         }
     }

@@ -9,9 +9,12 @@
 //! - `passes` and `progressive`: renders in sample passes until an error or
 //!   a time, adaptive blocks.
 //! - `region`: which pixels a render computes.
+//! - `on_cpu`: a render on the CPU reference, a JPEG's strips encoded as
+//!   their rows are finished.
 
 mod frames;
 mod job;
+mod on_cpu;
 mod options;
 mod output;
 pub mod passes;

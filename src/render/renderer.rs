@@ -183,7 +183,7 @@ impl Renderer {
         self.cancel = Some(flag);
     }
 
-    fn cancelled(&self) -> bool {
+    pub(super) fn cancelled(&self) -> bool {
         self.cancel
             .as_ref()
             .is_some_and(|c| c.load(Ordering::Relaxed))
@@ -273,7 +273,7 @@ impl Renderer {
         }
     }
 
-    fn cpu_options(&self, p: &Prepared, precision: Precision) -> CpuOptions {
+    pub(super) fn cpu_options(&self, p: &Prepared, precision: Precision) -> CpuOptions {
         CpuOptions {
             background: self.options.background,
             precision,
@@ -486,7 +486,7 @@ impl Renderer {
         progress: &(dyn Fn(u64, u64) + Sync),
     ) -> Result<RenderOutput, Error> {
         let mut need = MemoryNeed::image(p.camera.width, p.camera.height);
-        let image = match (&self.engine, packed) {
+        let (image, encoded) = match (&self.engine, packed) {
             (Engine::Gpu { renderer, ctx }, Packed::Gpu(packed)) => {
                 let host_device = ctx.info().profile.host_memory;
                 let texels = crate::gpu::tile_texels(
@@ -497,7 +497,7 @@ impl Renderer {
                 need.add_gpu(packed, texels, host_device);
                 need.check(memory::available())?;
                 let options = GpuRenderOptions {
-                    pack_rgb8: pixels == PixelFormat::Rgb8,
+                    pack_rgb8: pixels != PixelFormat::Float,
                     ..self.gpu_options(p)
                 };
                 let bg = self.options.background;
@@ -526,46 +526,31 @@ impl Renderer {
                 if from_disk > 0 {
                     timings.count("pipelines from disk", from_disk);
                 }
-                image
+                let encoded = match pixels {
+                    PixelFormat::Jpeg(q) => {
+                        Some(super::output::encode_jpeg(&image, q, &mut timings)?)
+                    }
+                    _ => None,
+                };
+                (image, encoded)
             }
-            (Engine::Cpu(precision), Packed::Cpu(geometry)) => {
-                if pixels == PixelFormat::Rgb8 {
-                    // The bands become bytes as they are rendered.
-                    need = MemoryNeed::rgb8(p.camera.width, p.camera.height);
-                }
-                need.check(memory::available())?;
-                let start = Instant::now();
-                let options = self.cpu_options(p, *precision);
-                let (image, work) = cpu::render_rows(
-                    scene,
-                    &p.bvh,
-                    geometry,
-                    &p.camera,
-                    &options,
-                    region.rows(p.camera.height),
-                    // Cancelled, the bands left trace nothing.
-                    &|x, y| region.keeps(x, y) && !self.cancelled(),
-                    progress,
-                    // 8-bit pixels are made band by band in the render's
-                    // threads, as the GPU packs them on the device.
-                    pixels == PixelFormat::Rgb8,
-                );
-                if self.cancelled() {
-                    return Err(Error::Cancelled);
-                }
-                timings.add("cpu render", start.elapsed());
-                timings.count(crate::timing::CLOSEST_RAYS, work.rays[0]);
-                timings.count(crate::timing::SHADOW_RAYS, work.rays[1]);
-                if let Some(t) = work.cpu_time {
-                    timings.count(crate::timing::CPU_TIME_NS, t.as_nanos() as u64);
-                }
-                image
-            }
+            (Engine::Cpu(precision), Packed::Cpu(geometry)) => self.render_on_cpu(
+                scene,
+                p,
+                geometry,
+                *precision,
+                region,
+                pixels,
+                progress,
+                &mut timings,
+                &mut need,
+            )?,
             // `pack` makes each engine its own.
             _ => unreachable!("a scene packed for another backend"),
         };
         Ok(RenderOutput {
             image,
+            encoded,
             renderer: self.name(),
             validation_messages: self.validation_messages(),
             timings,

@@ -9,7 +9,7 @@ use super::walk::traverse_packet;
 use crate::cpu::trace::{
     centre_key, count_rays, light_at, light_term, reflect_path, surface_point, CpuScene, NO_HIT,
 };
-use crate::cpu::Real;
+use crate::cpu::{Keep, Real};
 use crate::layout::{LIGHT_POINT, SPHERE_BIT};
 use crate::methods::Methods;
 
@@ -25,12 +25,7 @@ const _: () = assert!(TILE[0] * TILE[1] <= WIDTH as u32);
 /// Fills a band of `TILE[1]` rows (fewer for the last) from row `y0`, each
 /// `TILE`-sized tile's pixels that `keep` says as one packet (`colours`),
 /// the others left as they are.
-pub fn fill_band(
-    scene: &CpuScene<f32>,
-    y0: u32,
-    band: &mut [[f32; 3]],
-    keep: &(dyn Fn(u32, u32) -> bool + Sync),
-) {
+pub fn fill_band(scene: &CpuScene<f32>, y0: u32, band: &mut [[f32; 3]], keep: Keep) {
     let [tw, _] = TILE;
     let w = scene.size[0];
     let rows = band.len() as u32 / w.max(1);
@@ -45,7 +40,7 @@ pub fn fill_band(
         let mut n = 0;
         for y in y0..y0 + rows {
             for x in x0..(x0 + tw).min(w) {
-                if keep(x, y) {
+                if keep.pixel(x, y) {
                     pixels[n] = [x, y];
                     n += 1;
                 }

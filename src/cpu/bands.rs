@@ -1,0 +1,301 @@
+//! The CPU render's parallel loop: the image in bands of rows, taken by
+//! rayon's threads in an order spread over the image, each band filled by
+//! one thread and, for an 8-bit image, turned to bytes while it is in that
+//! thread's cache; and, where the caller asks for strips (a JPEG's), each
+//! strip of rows handed over on the thread that finished it.
+
+use std::sync::atomic::{AtomicU64, Ordering};
+use std::time::Duration;
+
+use image::RgbImage;
+use rayon::prelude::*;
+
+use super::real::Real;
+use super::trace::{self, CpuScene};
+use crate::images::framebuffer::{to_u8, Framebuffer, Image};
+
+/// Which pixels a render traces; the others are left 0.
+#[derive(Clone, Copy)]
+pub enum Keep<'a> {
+    /// Every pixel, until `stop()` says the render is cancelled: it is
+    /// asked once a band, so a render of every pixel pays nothing a pixel.
+    All(&'a (dyn Fn() -> bool + Sync)),
+    /// The pixels `f(x, y)` says, asked pixel by pixel.
+    Where(&'a (dyn Fn(u32, u32) -> bool + Sync)),
+}
+
+impl Keep<'_> {
+    /// Every pixel, never cancelled.
+    pub const EVERY: Keep<'static> = Keep::All(&|| false);
+
+    /// Whether the band is skipped whole (a cancelled render).
+    pub(super) fn stopped(&self) -> bool {
+        match self {
+            Keep::All(stop) => stop(),
+            Keep::Where(_) => false,
+        }
+    }
+
+    /// Whether pixel (x, y) of a band not `stopped` is traced.
+    #[inline]
+    pub fn pixel(&self, x: u32, y: u32) -> bool {
+        match self {
+            Keep::All(_) => true,
+            Keep::Where(f) => f(x, y),
+        }
+    }
+}
+
+/// What a render's bands become.
+#[derive(Clone, Copy)]
+pub enum Out<'a> {
+    /// The float image, unclamped as rendered.
+    Float,
+    /// 8-bit pixels (`to_u8`), each band converted on the thread that
+    /// rendered it: the float image is never whole.
+    Rgb8,
+    /// As `Rgb8`, and each strip of `rows` rows from the top (the last may
+    /// have fewer), once all its rows are made, handed to `strip(y0, rgb)`
+    /// on the thread that finished it: a JPEG encoder's strips are encoded
+    /// while the render goes on, not after it.
+    Rgb8Strips {
+        /// Rows a strip.
+        rows: u32,
+        /// Takes strip from row `y0`, its RGB8 rows tightly packed.
+        strip: &'a (dyn Fn(u32, &[u8]) + Sync),
+    },
+}
+
+/// What a render's threads did besides their pixels.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct Work {
+    /// Closest-hit and shadow rays cast.
+    pub rays: [u64; 2],
+    /// CPU time the threads spent on the pixels, summed over threads
+    /// (`timing::thread_cpu_time`); None where the system cannot say.
+    pub cpu_time: Option<Duration>,
+}
+
+/// Which rows a render's bands cover, who hears of them, and what they
+/// become.
+pub(super) struct Bands<'a> {
+    pub progress: &'a (dyn Fn(u64, u64) + Sync),
+    pub active: std::ops::Range<u32>,
+    pub keep: Keep<'a>,
+    pub out: Out<'a>,
+}
+
+impl Bands<'_> {
+    /// The image `fill(scene, y0, band)` makes, `rows` rows a band.
+    pub fn render<R: Real>(
+        &self,
+        scene: &CpuScene<R>,
+        rows: u32,
+        fill: impl Fn(&CpuScene<R>, u32, &mut [[f32; 3]]) + Sync,
+    ) -> (Image, Work) {
+        let [width, height] = scene.size;
+        let strip = match self.out {
+            Out::Float => {
+                let (pixels, work) = self.per_band(scene, rows, fill);
+                let fb = Framebuffer {
+                    width,
+                    height,
+                    pixels,
+                };
+                return (Image::Float(fb), work);
+            }
+            Out::Rgb8 => None,
+            Out::Rgb8Strips { rows, strip } => Some((rows, strip)),
+        };
+        let mut bytes = vec![0u8; 3 * width as usize * height as usize];
+        let to_bytes = |scene: &CpuScene<R>, y0, out: &mut [u8]| {
+            let mut band = vec![[0.0f32; 3]; out.len() / 3];
+            fill(scene, y0, &mut band);
+            for (o, &v) in out.iter_mut().zip(bytemuck::cast_slice::<_, f32>(&band)) {
+                *o = to_u8(v);
+            }
+        };
+        let tally = Tally::new();
+        match strip {
+            None => self.for_bands(scene, &tally, rows, 0, &mut bytes, 3, to_bytes),
+            Some((strip_rows, take)) => {
+                // Strips in an order spread over the image as bands are
+                // (progress stays even); a strip's bands in parallel, so a
+                // thread with no strip left helps finish the others.
+                let strip_rows = strip_rows.max(1);
+                let len = (3 * width as usize * strip_rows as usize).max(1);
+                let mut strips: Vec<Option<&mut [u8]>> = bytes.chunks_mut(len).map(Some).collect();
+                let ordered: Vec<(u32, &mut [u8])> = spread_order(strips.len() as u32)
+                    .into_iter()
+                    .filter_map(|i| Some((i * strip_rows, strips[i as usize].take()?)))
+                    .collect();
+                ordered.into_par_iter().for_each(|(y0, strip)| {
+                    self.for_bands(scene, &tally, rows, y0, strip, 3, to_bytes);
+                    take(y0, strip);
+                });
+            }
+        }
+        let image = RgbImage::from_raw(width, height, bytes).expect("3 bytes a pixel");
+        (Image::Rgb8(image), tally.work())
+    }
+
+    /// `f(scene, y0, band)` fills each band of `rows` rows from row `y0`
+    /// (the last may have fewer; `T::default()` to start with), bands in
+    /// parallel (`for_bands`). Also returns the rays `f` cast and the
+    /// threads' CPU time (`Work`).
+    pub fn per_band<R: Real, T: Send + Default + Clone>(
+        &self,
+        scene: &CpuScene<R>,
+        rows: u32,
+        f: impl Fn(&CpuScene<R>, u32, &mut [T]) + Sync,
+    ) -> (Vec<T>, Work) {
+        let [w, h] = scene.size;
+        let mut out = vec![T::default(); w as usize * h as usize];
+        let tally = Tally::new();
+        self.for_bands(scene, &tally, rows, 0, &mut out, 1, f);
+        (out, tally.work())
+    }
+
+    /// The bands of `out`, image rows from `y_first` on, `per_pixel`
+    /// elements a pixel, taken in `spread_order` so that `progress(rows_done,
+    /// rows)` advances at an even pace: rows in order would finish the cheap
+    /// sky first and the costly floor last, and an ETA from them would be
+    /// wrong by the ratio. Bands that miss the rows `active`, and those
+    /// begun after `keep` says stop, are left as they start.
+    #[allow(clippy::too_many_arguments)]
+    fn for_bands<R: Real, U: Send>(
+        &self,
+        scene: &CpuScene<R>,
+        tally: &Tally,
+        rows: u32,
+        y_first: u32,
+        out: &mut [U],
+        per_pixel: usize,
+        f: impl Fn(&CpuScene<R>, u32, &mut [U]) + Sync,
+    ) {
+        let [w, h] = scene.size;
+        let rows = rows.max(1);
+        let row_len = (w as usize * per_pixel).max(1);
+        let mut bands: Vec<Option<&mut [U]>> =
+            out.chunks_mut(row_len * rows as usize).map(Some).collect();
+        let active = &self.active;
+        let ordered: Vec<(u32, &mut [U])> = spread_order(bands.len() as u32)
+            .into_iter()
+            .map(|b| (b, y_first + b * rows))
+            .filter(|&(_, y0)| y0 < active.end && y0 + rows > active.start)
+            .filter_map(|(b, y0)| Some((y0, bands[b as usize].take()?)))
+            .collect();
+        let skipped = out_rows(&bands, row_len);
+        tally.done.fetch_add(skipped, Ordering::Relaxed);
+        ordered.into_par_iter().for_each(|(y0, band)| {
+            let n = (band.len() / row_len) as u64;
+            if !self.keep.stopped() {
+                tally.band(|| f(scene, y0, band));
+            }
+            let finished = tally.done.fetch_add(n, Ordering::Relaxed) + n;
+            (self.progress)(finished, u64::from(h));
+        });
+    }
+}
+
+/// Rows of the bands left in `bands` (those no thread takes).
+fn out_rows<U>(bands: &[Option<&mut [U]>], row_len: usize) -> u64 {
+    let elements: usize = bands.iter().flatten().map(|b| b.len()).sum();
+    (elements / row_len) as u64
+}
+
+/// What a render's bands did, summed over threads as they finish.
+struct Tally {
+    done: AtomicU64,
+    rays: [AtomicU64; 2],
+    cpu_ns: AtomicU64,
+}
+
+impl Tally {
+    fn new() -> Tally {
+        Tally {
+            done: AtomicU64::new(0),
+            rays: [AtomicU64::new(0), AtomicU64::new(0)],
+            cpu_ns: AtomicU64::new(0),
+        }
+    }
+
+    /// Runs one band's `fill`, counting its rays and its thread's CPU time.
+    fn band(&self, fill: impl FnOnce()) {
+        // A band runs on one thread from start to end, so the thread's
+        // counters moved by this band's rays alone.
+        let before = trace::rays_cast();
+        let started = crate::timing::thread_cpu_time();
+        fill();
+        if let (Some(a), Some(b)) = (started, crate::timing::thread_cpu_time()) {
+            let ns = b.saturating_sub(a).as_nanos() as u64;
+            self.cpu_ns.fetch_add(ns, Ordering::Relaxed);
+        }
+        let after = trace::rays_cast();
+        for k in 0..2 {
+            self.rays[k].fetch_add(after[k] - before[k], Ordering::Relaxed);
+        }
+    }
+
+    fn work(self) -> Work {
+        Work {
+            rays: self.rays.map(AtomicU64::into_inner),
+            // The clock is the system's: there for every band or for none.
+            cpu_time: crate::timing::thread_cpu_time()
+                .map(|_| Duration::from_nanos(self.cpu_ns.into_inner())),
+        }
+    }
+}
+
+/// The rows 0..n in an order whose every stretch is spread over the whole
+/// image: row (i * s) mod n, with the stride s near n / golden ratio and
+/// coprime to n (so each row comes once).
+pub fn spread_order(n: u32) -> Vec<u32> {
+    if n < 3 {
+        return (0..n).collect();
+    }
+    let gcd = |mut a: u64, mut b: u64| {
+        while b != 0 {
+            (a, b) = (b, a % b);
+        }
+        a
+    };
+    let mut stride = ((f64::from(n) * 0.618_033_988_75) as u64).max(1);
+    while gcd(stride, u64::from(n)) != 1 {
+        stride += 1;
+    }
+    (0..u64::from(n))
+        .map(|i| ((i * stride) % u64::from(n)) as u32)
+        .collect()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::spread_order;
+
+    /// Each row once, and any stretch of the order is spread evenly: the
+    /// first eighth of the work touches every eighth of the image.
+    #[test]
+    fn spread_order_is_a_permutation_spread_over_the_image() {
+        for n in [0, 1, 2, 3, 7, 30, 240, 480, 1000, 1024, 16384] {
+            let order = spread_order(n);
+            let mut seen = order.clone();
+            seen.sort_unstable();
+            assert_eq!(seen, (0..n).collect::<Vec<_>>(), "n = {n}");
+            if n >= 64 {
+                let eighth = (n / 8) as usize;
+                for start in [0, eighth, 3 * eighth] {
+                    let mut bands = [0u32; 8];
+                    for &y in &order[start..start + eighth] {
+                        bands[(y * 8 / n) as usize] += 1;
+                    }
+                    let (lo, hi) = (bands.iter().min().unwrap(), bands.iter().max().unwrap());
+                    assert!(
+                        *lo > 0 && hi - lo <= eighth as u32 / 4 + 2,
+                        "n = {n}: {bands:?}"
+                    );
+                }
+            }
+        }
+    }
+}
