@@ -26,11 +26,9 @@ phase() { grep -E "^  $1 +[0-9.]+ ms$" | head -1 | awk '{print $(NF-1)}'; }
 
 echo "== test1 1920x1080, ${backend[*]}, median of $runs (ms)"
 # enc+wr: encode and write's share of the total; after: everything after
-# the render (the 8-bit conversion too); in render: CPU time the render's
-# threads spent encoding a JPEG's strips as they finished them (inside
-# `render`, summed over threads). .ppm is the file with no encode at all.
-printf '%-5s %10s %10s %10s %10s %10s %8s %8s %10s\n' out render "to 8-bit" encode write total "enc+wr" after "in render"
-for ext in jpg png ppm exr; do
+# the render (the 8-bit conversion too).
+printf '%-5s %10s %10s %10s %10s %10s %8s %8s\n' out render "to 8-bit" encode write total "enc+wr" after
+for ext in jpg png exr; do
     : >"$work/r"
     for _ in $(seq "$runs"); do
         "$glint" render "$classic/test1.scene" "$work/o.$ext" --width 1920 --height 1080 \
@@ -38,15 +36,13 @@ for ext in jpg png ppm exr; do
         r=$(phase "cpu render" <"$work/log" || true)
         [ -n "$r" ] || r=$(phase dispatch <"$work/log")
         t8=$(phase "to 8-bit" <"$work/log" || true)
-        enc=$(phase encode <"$work/log" || true)
-        inr=$(awk '/^  encode cpu ns / {printf "%.3f", $4 / 1e6; exit}' "$work/log")
-        echo "$r ${t8:-0} ${enc:-0} $(phase write <"$work/log") $(phase total <"$work/log") ${inr:-0}" >>"$work/r"
+        echo "$r ${t8:-0} $(phase encode <"$work/log") $(phase write <"$work/log") $(phase total <"$work/log")" >>"$work/r"
     done
     cols=()
-    for c in 1 2 3 4 5 6; do cols+=("$(cut -d' ' -f$c "$work/r" | median)"); done
+    for c in 1 2 3 4 5; do cols+=("$(cut -d' ' -f$c "$work/r" | median)"); done
     share=$(awk -v e="${cols[2]}" -v w="${cols[3]}" -v t="${cols[4]}" 'BEGIN {printf "%.1f%%", 100 * (e + w) / t}')
     after=$(awk -v c="${cols[1]}" -v e="${cols[2]}" -v w="${cols[3]}" -v t="${cols[4]}" 'BEGIN {printf "%.1f%%", 100 * (c + e + w) / t}')
-    printf '%-5s %10s %10s %10s %10s %10s %8s %8s %10s\n' "$ext" "${cols[@]:0:5}" "$share" "$after" "${cols[5]}"
+    printf '%-5s %10s %10s %10s %10s %10s %8s %8s\n' "$ext" "${cols[@]}" "$share" "$after"
 done
 
 echo "== 48 frames of table with moving lights, 1280x720, ${backend[*]}"

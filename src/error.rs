@@ -46,14 +46,6 @@ pub enum Error {
         /// Why.
         error: std::io::Error,
     },
-    /// A rendered image could not be encoded; nothing was written.
-    #[error("cannot encode the image as {format}: {reason}")]
-    Encode {
-        /// The file format, e.g. "JPEG".
-        format: &'static str,
-        /// Why.
-        reason: String,
-    },
     /// An image could not be read or decoded.
     #[error("cannot read image {path}: {message}")]
     ReadImage {

@@ -21,10 +21,6 @@ pub const GPU_TIME_NS: &str = "gpu ns";
 /// wall time it leaves out what the machine took elsewhere: time the
 /// threads waited for a core, and a virtual machine's stolen time.
 pub const CPU_TIME_NS: &str = "cpu ns";
-/// Nanoseconds of CPU time a CPU render's threads spent encoding a JPEG's
-/// strips as they finished their rows, summed over the threads: inside the
-/// `cpu render` phase, and not in `CPU_TIME_NS`.
-pub const ENCODE_CPU_NS: &str = "encode cpu ns";
 
 /// The CPU time the calling thread has run for (steal excluded where the
 /// kernel accounts it), or None where the system has no such clock.

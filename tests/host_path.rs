@@ -14,8 +14,6 @@
 //!   for 8-bit files, the same pixels as the float render converted, and 12
 //!   for floats, the texels' own bits; on the CPU
 //!   they are made band by band in the render's threads, the same bytes.
-//! - A JPEG encoded strip by strip as the CPU renders is the file the
-//!   finished pixels make.
 //! - A device failing mid-animation leaves the finished frames whole.
 
 mod common;
@@ -159,69 +157,6 @@ fn eight_bit_cpu_renders_convert_each_band_as_the_image_would() {
                     *a.output.image.to_rgb8(),
                     "{name}, {which:?}, {precision:?}"
                 );
-            }
-        }
-    }
-}
-
-/// A JPEG render (`PixelFormat::Jpeg`, what a .jpg asks for; on the CPU
-/// each strip is encoded as soon as its rows are rendered, while the
-/// others render) is the file the 8-bit render's pixels make encoded after
-/// it, byte for byte: on every backend, in both CPU precisions and without
-/// packets, for images of one strip and of several; and a .jpg a job
-/// writes is those bytes.
-#[test]
-fn jpeg_renders_are_the_8_bit_pixels_encoded() {
-    use glint::cpu::Precision;
-    let quality = 87;
-    let dir = tmp();
-    for (w, h) in [(W, H), (40, 300)] {
-        let mut variants = vec![(Backend::Cpu, Precision::F32, true)];
-        variants.push((Backend::Cpu, Precision::F32, false));
-        variants.push((Backend::Cpu, Precision::F64, true));
-        if gpu().is_some() {
-            variants.push((Backend::Gpu, Precision::F32, true));
-        }
-        for (name, scene) in scenes() {
-            for &(backend, precision, packets) in &variants {
-                let options = RenderOptions {
-                    width: w,
-                    height: h,
-                    backend,
-                    precision,
-                    packets,
-                    ..Default::default()
-                };
-                let what = format!("{name} {w}x{h} on {backend:?} {precision:?} packets {packets}");
-                let r = Renderer::new(&options).expect("renderer");
-                let run = |pixels| {
-                    r.run(&Job::new(&scene), &Sink::Memory(pixels), &Quiet)
-                        .expect("renders")
-                        .output
-                };
-                let plain = run(PixelFormat::Rgb8);
-                let jpeg = run(PixelFormat::Jpeg(quality));
-                let pixels = plain.image.to_rgb8();
-                assert_eq!(*jpeg.image.to_rgb8(), *pixels, "{what}");
-                assert!(plain.encoded.is_none(), "{what}");
-                let after = glint::images::encode::jpeg::encode(pixels.as_raw(), w, h, quality)
-                    .expect("encodes");
-                assert!(
-                    jpeg.encoded.as_ref() == Some(&after),
-                    "{what}: not the same file"
-                );
-                if backend == Backend::Cpu && precision == Precision::F32 && packets {
-                    let path = dir.path().join(format!("{name}.jpg"));
-                    let sink = Sink::File {
-                        path: path.clone(),
-                        encode: EncodeOptions::with_quality(quality),
-                    };
-                    r.run(&Job::new(&scene), &sink, &Quiet).expect("writes");
-                    assert!(
-                        std::fs::read(&path).expect("written") == after,
-                        "{what}: the file"
-                    );
-                }
             }
         }
     }

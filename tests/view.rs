@@ -126,15 +126,39 @@ impl Xvfb {
 
     /// Waits until the title says the refinement is done, returning it.
     fn done(&self, id: &str, after: &str) -> String {
+        self.done_within(id, after, Duration::from_secs(60))
+            .unwrap_or_else(|t| panic!("never done: {t}"))
+    }
+
+    /// As `done`, the last title seen as the error after `limit`.
+    fn done_within(&self, id: &str, after: &str, limit: Duration) -> Result<String, String> {
         let start = Instant::now();
         loop {
             let t = self.title(id);
             if t.contains("[done") && t != after {
-                return t;
+                return Ok(t);
             }
-            assert!(start.elapsed() < Duration::from_secs(60), "never done: {t}");
+            if start.elapsed() >= limit {
+                return Err(t);
+            }
             std::thread::sleep(Duration::from_millis(100));
         }
+    }
+
+    /// A left-button drag of 40 pixels across the window, as a user makes
+    /// one: the window focused, the pointer in it before the button goes
+    /// down.
+    fn drag(&self, id: &str) {
+        self.tool("xdotool", &["windowfocus", "--sync", id]);
+        self.tool("xdotool", &["mousemove", "--window", id, "60", "60"]);
+        std::thread::sleep(Duration::from_millis(200));
+        self.tool("xdotool", &["mousedown", "1"]);
+        for step in 1..=4 {
+            let to = (60 + 10 * step).to_string();
+            self.tool("xdotool", &["mousemove", "--window", id, &to, "70"]);
+            std::thread::sleep(Duration::from_millis(30));
+        }
+        self.tool("xdotool", &["mouseup", "1"]);
     }
 
     /// Types `key` into the window as a user would (XTEST input to the
@@ -419,15 +443,20 @@ fn a_drag_moves_the_camera_and_s_saves_what_render_makes() {
     let mut child = view(&x, d, "cpu", &[]);
     let id = x.window(&mut child);
     let first = x.done(&id, "");
-    x.tool("xdotool", &["mousemove", "--window", &id, "60", "60"]);
-    x.tool("xdotool", &["mousedown", "1"]);
-    for step in 1..=4 {
-        let to = (60 + 10 * step).to_string();
-        x.tool("xdotool", &["mousemove", "--window", &id, &to, "70"]);
-        std::thread::sleep(Duration::from_millis(30));
+    // Once in CI (2026-12-06) the title never changed after the drag, and
+    // six runs alone could not repeat it: whether X or the window lost it
+    // is not known. The drag is made again, twice at most, and said so; a
+    // window that takes no drag still fails.
+    let mut moved = Err(String::new());
+    for attempt in 1..=3 {
+        x.drag(&id);
+        moved = x.done_within(&id, &first, Duration::from_secs(20));
+        if moved.is_ok() {
+            break;
+        }
+        eprintln!("drag {attempt}: the title did not change in 20 s");
     }
-    x.tool("xdotool", &["mouseup", "1"]);
-    let moved = x.done(&id, &first);
+    let moved = moved.unwrap_or_else(|t| panic!("the title never changed after three drags: {t}"));
     assert!(moved.contains("[done"), "{moved}");
     for key in ["c", "s", "q"] {
         x.key(&id, key);

@@ -47,12 +47,6 @@ pub fn stats(output: &glint::render::RenderOutput, timings: &glint::timing::Timi
             timings.counted(glint::timing::CPU_TIME_NS) as f64 / 1e6
         ));
     }
-    if timings.has_count(glint::timing::ENCODE_CPU_NS) {
-        s.push_str(&format!(
-            "\n  encode      {:.3} ms more on those threads: the JPEG, each strip as its rows were done",
-            timings.counted(glint::timing::ENCODE_CPU_NS) as f64 / 1e6
-        ));
-    }
     for name in [glint::timing::READBACK_BYTES, glint::timing::UPLOADED_BYTES] {
         if timings.has_count(name) {
             s.push_str(&format!("\n  {name} {}", timings.counted(name)));

@@ -1,8 +1,7 @@
 //! The CPU render's parallel loop: the image in bands of rows, taken by
 //! rayon's threads in an order spread over the image, each band filled by
 //! one thread and, for an 8-bit image, turned to bytes while it is in that
-//! thread's cache; and, where the caller asks for strips (a JPEG's), each
-//! strip of rows handed over on the thread that finished it.
+//! thread's cache.
 
 use std::sync::atomic::{AtomicU64, Ordering};
 use std::time::Duration;
@@ -47,23 +46,13 @@ impl Keep<'_> {
 }
 
 /// What a render's bands become.
-#[derive(Clone, Copy)]
-pub enum Out<'a> {
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Out {
     /// The float image, unclamped as rendered.
     Float,
     /// 8-bit pixels (`to_u8`), each band converted on the thread that
     /// rendered it: the float image is never whole.
     Rgb8,
-    /// As `Rgb8`, and each strip of `rows` rows from the top (the last may
-    /// have fewer), once all its rows are made, handed to `strip(y0, rgb)`
-    /// on the thread that finished it: a JPEG encoder's strips are encoded
-    /// while the render goes on, not after it.
-    Rgb8Strips {
-        /// Rows a strip.
-        rows: u32,
-        /// Takes strip from row `y0`, its RGB8 rows tightly packed.
-        strip: &'a (dyn Fn(u32, &[u8]) + Sync),
-    },
 }
 
 /// What a render's threads did besides their pixels.
@@ -82,7 +71,7 @@ pub(super) struct Bands<'a> {
     pub progress: &'a (dyn Fn(u64, u64) + Sync),
     pub active: std::ops::Range<u32>,
     pub keep: Keep<'a>,
-    pub out: Out<'a>,
+    pub out: Out,
 }
 
 impl Bands<'_> {
@@ -94,49 +83,25 @@ impl Bands<'_> {
         fill: impl Fn(&CpuScene<R>, u32, &mut [[f32; 3]]) + Sync,
     ) -> (Image, Work) {
         let [width, height] = scene.size;
-        let strip = match self.out {
-            Out::Float => {
-                let (pixels, work) = self.per_band(scene, rows, fill);
-                let fb = Framebuffer {
-                    width,
-                    height,
-                    pixels,
-                };
-                return (Image::Float(fb), work);
-            }
-            Out::Rgb8 => None,
-            Out::Rgb8Strips { rows, strip } => Some((rows, strip)),
-        };
+        if let Out::Float = self.out {
+            let (pixels, work) = self.per_band(scene, rows, fill);
+            let fb = Framebuffer {
+                width,
+                height,
+                pixels,
+            };
+            return (Image::Float(fb), work);
+        }
         let mut bytes = vec![0u8; 3 * width as usize * height as usize];
-        let to_bytes = |scene: &CpuScene<R>, y0, out: &mut [u8]| {
+        let work = self.for_bands(scene, rows, &mut bytes, 3, |scene, y0, out| {
             let mut band = vec![[0.0f32; 3]; out.len() / 3];
             fill(scene, y0, &mut band);
             for (o, &v) in out.iter_mut().zip(bytemuck::cast_slice::<_, f32>(&band)) {
                 *o = to_u8(v);
             }
-        };
-        let tally = Tally::new();
-        match strip {
-            None => self.for_bands(scene, &tally, rows, 0, &mut bytes, 3, to_bytes),
-            Some((strip_rows, take)) => {
-                // Strips in an order spread over the image as bands are
-                // (progress stays even); a strip's bands in parallel, so a
-                // thread with no strip left helps finish the others.
-                let strip_rows = strip_rows.max(1);
-                let len = (3 * width as usize * strip_rows as usize).max(1);
-                let mut strips: Vec<Option<&mut [u8]>> = bytes.chunks_mut(len).map(Some).collect();
-                let ordered: Vec<(u32, &mut [u8])> = spread_order(strips.len() as u32)
-                    .into_iter()
-                    .filter_map(|i| Some((i * strip_rows, strips[i as usize].take()?)))
-                    .collect();
-                ordered.into_par_iter().for_each(|(y0, strip)| {
-                    self.for_bands(scene, &tally, rows, y0, strip, 3, to_bytes);
-                    take(y0, strip);
-                });
-            }
-        }
+        });
         let image = RgbImage::from_raw(width, height, bytes).expect("3 bytes a pixel");
-        (Image::Rgb8(image), tally.work())
+        (Image::Rgb8(image), work)
     }
 
     /// `f(scene, y0, band)` fills each band of `rows` rows from row `y0`
@@ -151,28 +116,24 @@ impl Bands<'_> {
     ) -> (Vec<T>, Work) {
         let [w, h] = scene.size;
         let mut out = vec![T::default(); w as usize * h as usize];
-        let tally = Tally::new();
-        self.for_bands(scene, &tally, rows, 0, &mut out, 1, f);
-        (out, tally.work())
+        let work = self.for_bands(scene, rows, &mut out, 1, f);
+        (out, work)
     }
 
-    /// The bands of `out`, image rows from `y_first` on, `per_pixel`
-    /// elements a pixel, taken in `spread_order` so that `progress(rows_done,
-    /// rows)` advances at an even pace: rows in order would finish the cheap
-    /// sky first and the costly floor last, and an ETA from them would be
-    /// wrong by the ratio. Bands that miss the rows `active`, and those
-    /// begun after `keep` says stop, are left as they start.
-    #[allow(clippy::too_many_arguments)]
+    /// The bands of `out`, `per_pixel` elements a pixel, taken in
+    /// `spread_order` so that `progress(rows_done, rows)` advances at an
+    /// even pace: rows in order would finish the cheap sky first and the
+    /// costly floor last, and an ETA from them would be wrong by the ratio.
+    /// Bands that miss the rows `active`, and those begun after `keep` says
+    /// stop, are left as they start.
     fn for_bands<R: Real, U: Send>(
         &self,
         scene: &CpuScene<R>,
-        tally: &Tally,
         rows: u32,
-        y_first: u32,
         out: &mut [U],
         per_pixel: usize,
         f: impl Fn(&CpuScene<R>, u32, &mut [U]) + Sync,
-    ) {
+    ) -> Work {
         let [w, h] = scene.size;
         let rows = rows.max(1);
         let row_len = (w as usize * per_pixel).max(1);
@@ -181,12 +142,15 @@ impl Bands<'_> {
         let active = &self.active;
         let ordered: Vec<(u32, &mut [U])> = spread_order(bands.len() as u32)
             .into_iter()
-            .map(|b| (b, y_first + b * rows))
-            .filter(|&(_, y0)| y0 < active.end && y0 + rows > active.start)
-            .filter_map(|(b, y0)| Some((y0, bands[b as usize].take()?)))
+            .filter(|&b| b * rows < active.end && (b + 1) * rows > active.start)
+            .filter_map(|b| Some((b * rows, bands[b as usize].take()?)))
             .collect();
-        let skipped = out_rows(&bands, row_len);
-        tally.done.fetch_add(skipped, Ordering::Relaxed);
+        let tally = Tally::new();
+        // The rows of the bands no thread takes are done from the start.
+        let skipped: usize = bands.iter().flatten().map(|b| b.len()).sum();
+        tally
+            .done
+            .store((skipped / row_len) as u64, Ordering::Relaxed);
         ordered.into_par_iter().for_each(|(y0, band)| {
             let n = (band.len() / row_len) as u64;
             if !self.keep.stopped() {
@@ -195,13 +159,8 @@ impl Bands<'_> {
             let finished = tally.done.fetch_add(n, Ordering::Relaxed) + n;
             (self.progress)(finished, u64::from(h));
         });
+        tally.work()
     }
-}
-
-/// Rows of the bands left in `bands` (those no thread takes).
-fn out_rows<U>(bands: &[Option<&mut [U]>], row_len: usize) -> u64 {
-    let elements: usize = bands.iter().flatten().map(|b| b.len()).sum();
-    (elements / row_len) as u64
 }
 
 /// What a render's bands did, summed over threads as they finish.

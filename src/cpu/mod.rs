@@ -84,7 +84,7 @@ pub fn render_where(
 /// says: the float image, or the 8-bit one with each band turned to bytes
 /// on its own thread as soon as it is rendered (`to_u8`: the float image is
 /// never whole, and at 1080p the separate conversion's 6 ms and 24 MB are
-/// gone), its strips handed on as they are finished where `out` asks.
+/// gone).
 #[allow(clippy::too_many_arguments)]
 pub fn render_rows(
     scene: &Scene,

@@ -222,13 +222,11 @@ impl Done {
         let output = match last {
             Some(last) => RenderOutput {
                 image: empty,
-                encoded: None,
                 timings: frames.render_timings.clone(),
                 ..last
             },
             None => RenderOutput {
                 image: empty,
-                encoded: None,
                 timings: frames.render_timings.clone(),
                 renderer,
                 note: None,

@@ -9,8 +9,7 @@
 //! - `passes` and `progressive`: renders in sample passes until an error or
 //!   a time, adaptive blocks.
 //! - `region`: which pixels a render computes.
-//! - `on_cpu`: a render on the CPU reference, a JPEG's strips encoded as
-//!   their rows are finished.
+//! - `on_cpu`: a render on the CPU reference.
 
 mod frames;
 mod job;

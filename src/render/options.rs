@@ -77,10 +77,6 @@ pub enum PixelFormat {
     Float,
     /// `framebuffer::to_u8` of each channel (`Image::Rgb8`).
     Rgb8,
-    /// As `Rgb8`, and the JPEG file of those pixels at this quality (1-100)
-    /// in `RenderOutput::encoded`: on the CPU reference each strip of rows
-    /// is encoded as soon as it is rendered, while the render goes on.
-    Jpeg(u8),
 }
 
 impl PixelFormat {

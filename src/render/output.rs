@@ -3,16 +3,12 @@
 use crate::images::framebuffer::{Framebuffer, Image};
 use crate::memory::MemoryNeed;
 use crate::timing::Timings;
-use crate::Error;
 
 /// A finished render (or pass) and what it took.
 pub struct RenderOutput {
     /// Float values, or 8-bit pixels where the render was asked for them
     /// (`RenderOptions::pixels`).
     pub image: Image,
-    /// The image file's bytes where the render was asked for them
-    /// (`PixelFormat::Jpeg`); a sink writes these as they are.
-    pub encoded: Option<Vec<u8>>,
     /// Each phase's time and the counts (rays, bytes read back, ...).
     pub timings: Timings,
     /// What rendered it, e.g. "GPU: llvmpipe (LLVM 15.0.6, 256 bits)" or "CPU reference (f32)".
@@ -40,21 +36,4 @@ impl RenderOutput {
     pub fn into_framebuffer(self) -> Framebuffer {
         self.image.into_float()
     }
-}
-
-/// The JPEG of an image already rendered, timed as `encode`.
-pub(super) fn encode_jpeg(
-    image: &Image,
-    quality: u8,
-    timings: &mut Timings,
-) -> Result<Vec<u8>, Error> {
-    let options = crate::images::encode::EncodeOptions::with_quality(quality);
-    timings
-        .time("encode", || {
-            image.encode(crate::images::encode::ImageFile::Jpeg, &options)
-        })
-        .map_err(|reason| Error::Encode {
-            format: "JPEG",
-            reason,
-        })
 }

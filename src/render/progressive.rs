@@ -125,12 +125,8 @@ impl Renderer {
         let mut output = last.expect("at least one pass");
         output.image = match self.options.pixels {
             PixelFormat::Float => Image::Float(acc.mean()),
-            PixelFormat::Rgb8 | PixelFormat::Jpeg(_) => Image::Rgb8(acc.mean().to_rgb8()),
+            PixelFormat::Rgb8 => Image::Rgb8(acc.mean().to_rgb8()),
         };
-        if let PixelFormat::Jpeg(quality) = self.options.pixels {
-            let bytes = super::output::encode_jpeg(&output.image, quality, &mut output.timings)?;
-            output.encoded = Some(bytes);
-        }
         let report = *history.last().expect("at least one pass");
         Ok(Progressive {
             output,

@@ -486,7 +486,7 @@ impl Renderer {
         progress: &(dyn Fn(u64, u64) + Sync),
     ) -> Result<RenderOutput, Error> {
         let mut need = MemoryNeed::image(p.camera.width, p.camera.height);
-        let (image, encoded) = match (&self.engine, packed) {
+        let image = match (&self.engine, packed) {
             (Engine::Gpu { renderer, ctx }, Packed::Gpu(packed)) => {
                 let host_device = ctx.info().profile.host_memory;
                 let texels = crate::gpu::tile_texels(
@@ -497,7 +497,7 @@ impl Renderer {
                 need.add_gpu(packed, texels, host_device);
                 need.check(memory::available())?;
                 let options = GpuRenderOptions {
-                    pack_rgb8: pixels != PixelFormat::Float,
+                    pack_rgb8: pixels == PixelFormat::Rgb8,
                     ..self.gpu_options(p)
                 };
                 let bg = self.options.background;
@@ -526,13 +526,7 @@ impl Renderer {
                 if from_disk > 0 {
                     timings.count("pipelines from disk", from_disk);
                 }
-                let encoded = match pixels {
-                    PixelFormat::Jpeg(q) => {
-                        Some(super::output::encode_jpeg(&image, q, &mut timings)?)
-                    }
-                    _ => None,
-                };
-                (image, encoded)
+                image
             }
             (Engine::Cpu(precision), Packed::Cpu(geometry)) => self.render_on_cpu(
                 scene,
@@ -550,7 +544,6 @@ impl Renderer {
         };
         Ok(RenderOutput {
             image,
-            encoded,
             renderer: self.name(),
             validation_messages: self.validation_messages(),
             timings,

@@ -68,7 +68,6 @@ impl Renderer {
         };
         let written = sink.write(
             &output.image,
-            output.encoded.as_deref(),
             &job.target,
             stamp.as_ref(),
             &mut output.timings,

@@ -79,12 +79,10 @@ impl Sink {
     }
 
     /// Writes `image`, adding `encode` and `write` to `timings`; returns
-    /// the path written. `encoded`: the file's bytes where the render made
-    /// them (`PixelFormat::Jpeg`, which `pixels` asks for a .jpg).
+    /// the path written.
     pub(super) fn write(
         &self,
         image: &Image,
-        encoded: Option<&[u8]>,
         target: &Target,
         stamp: Option<&Stamp>,
         timings: &mut Timings,
@@ -125,22 +123,15 @@ impl Sink {
                     Some(p) => ImageFile::of(p)?,
                     None => ImageFile::Png,
                 };
-                let made;
-                let bytes = match encoded {
-                    Some(bytes) if kind == ImageFile::Jpeg => bytes,
-                    _ => {
-                        made = timings
-                            .time("encode", || image.encode(kind, encode))
-                            .map_err(|e| Error::WriteImage {
-                                path: shown(),
-                                error: std::io::Error::other(e),
-                            })?;
-                        &made
-                    }
-                };
+                let bytes = timings
+                    .time("encode", || image.encode(kind, encode))
+                    .map_err(|e| Error::WriteImage {
+                        path: shown(),
+                        error: std::io::Error::other(e),
+                    })?;
                 timings.time("write", || match path {
-                    Some(p) => crate::images::framebuffer::write_bytes(p, bytes),
-                    None => crate::images::framebuffer::write_bytes_to_stdout(bytes),
+                    Some(p) => crate::images::framebuffer::write_bytes(p, &bytes),
+                    None => crate::images::framebuffer::write_bytes_to_stdout(&bytes),
                 })?;
             }
         }
@@ -176,12 +167,9 @@ impl Sink {
             (Sink::Frames { format, .. }, _) => PixelFormat::for_file(*format),
             (_, Target::Crop(_) | Target::Part(_)) => PixelFormat::Float,
             (Sink::Stdout(_), Target::Image | Target::Frames(_)) => PixelFormat::Rgb8,
-            (Sink::File { path, encode }, Target::Image) => match ImageFile::of(path) {
-                Ok(ImageFile::Jpeg) => PixelFormat::Jpeg(encode.jpeg_quality),
-                kind => kind.map_or(PixelFormat::Float, PixelFormat::for_file),
-            },
-            (Sink::File { path, .. }, Target::Frames(_)) => {
-                ImageFile::of(path).map_or(PixelFormat::Float, PixelFormat::for_file)
+            (Sink::File { path, .. }, Target::Image | Target::Frames(_)) => {
+                crate::images::framebuffer::ImageFile::of(path)
+                    .map_or(PixelFormat::Float, PixelFormat::for_file)
             }
         }
     }

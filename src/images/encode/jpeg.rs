@@ -15,13 +15,9 @@
 
 use rayon::prelude::*;
 
-/// Rows of 8x8 blocks in one strip. A render that encodes strips as it
-/// finishes them waits after its last rows for one strip's encode (a
-/// 1920-wide strip of 8 takes about 1.5 ms on one core of the 2-core EPYC),
-/// so shorter is better until a strip's own start-up shows: test1 at
-/// 1920x1080 to .jpg, 21 alternating runs, total 52.4 ms with strips of 16
-/// rows of blocks against 48.6 with 8 (4 was within the noise of 8).
-const STRIP_MCU_ROWS: usize = 8;
+/// Rows of 8x8 blocks in one strip: below this the threads' start-up costs
+/// more than the strip saves (about 1 ms a 1920-wide strip).
+const STRIP_MCU_ROWS: usize = 16;
 
 const MARKER: u8 = 0xFF;
 const RST0: u8 = 0xD0;
@@ -31,96 +27,40 @@ const EOI: u8 = 0xD9;
 
 /// Encodes tightly packed RGB8 rows as a baseline JPEG of `quality` (1-100).
 pub fn encode(rgb: &[u8], width: u32, height: u32, quality: u8) -> Result<Vec<u8>, String> {
-    let strips = Strips::new(width, height, quality)?;
-    let row_bytes = width as usize * 3;
-    if rgb.len() != row_bytes * height as usize {
+    let (w, h) = (dims(width)?, dims(height)?);
+    if rgb.len() != usize::from(w) * usize::from(h) * 3 {
         return Err(format!(
             "{} bytes of pixels for a {width}x{height} RGB image",
             rgb.len()
         ));
     }
-    let parts: Vec<Vec<u8>> = rgb
-        .par_chunks(row_bytes * strips.rows() as usize)
-        .map(|strip| strips.encode(strip))
-        .collect::<Result<_, _>>()?;
-    strips.join(parts)
-}
-
-/// A JPEG cut into strips of `rows()` rows (the last may have fewer), each
-/// encoded on its own (`encode`, on any thread, as soon as its rows exist)
-/// and joined in order (`join`). The file is the same bytes whichever
-/// thread encoded which strip, and whether the strips were made by
-/// `encode` above or by a render as it finished their rows.
-#[derive(Clone, Copy, Debug)]
-pub struct Strips {
-    width: u16,
-    height: u16,
-    quality: u8,
-    /// One MCU row's MCUs, where there are several strips (none where one
-    /// strip is the whole image and needs no restart markers).
-    interval: Option<u16>,
-}
-
-impl Strips {
-    /// The strips of a `width` x `height` JPEG of `quality` (1-100).
-    pub fn new(width: u32, height: u32, quality: u8) -> Result<Strips, String> {
-        let (w, h) = (dims(width)?, dims(height)?);
-        let interval = if usize::from(h).div_ceil(8) > STRIP_MCU_ROWS {
-            let mcus = usize::from(w).div_ceil(8);
-            Some(u16::try_from(mcus).map_err(|_| "image too wide for JPEG".to_string())?)
-        } else {
-            None
-        };
-        Ok(Strips {
-            width: w,
-            height: h,
-            quality,
-            interval,
+    let mcu_rows = usize::from(h).div_ceil(8);
+    let strips = (mcu_rows / STRIP_MCU_ROWS).clamp(1, rayon::current_num_threads() * 4);
+    if strips == 1 {
+        return encode_one(rgb, w, h, quality, None);
+    }
+    let mcus_per_row = usize::from(w).div_ceil(8);
+    let interval =
+        u16::try_from(mcus_per_row).map_err(|_| "image too wide for JPEG".to_string())?;
+    let row_bytes = usize::from(w) * 3;
+    // Strip i holds MCU rows [start(i), start(i + 1)).
+    let start = |i: usize| i * mcu_rows / strips;
+    let parts: Vec<Vec<u8>> = (0..strips)
+        .into_par_iter()
+        .map(|i| {
+            let y0 = start(i) * 8;
+            let y1 = (start(i + 1) * 8).min(usize::from(h));
+            let rows = u16::try_from(y1 - y0).expect("a strip is no taller than the image");
+            encode_one(
+                &rgb[y0 * row_bytes..y1 * row_bytes],
+                w,
+                rows,
+                quality,
+                Some(interval),
+            )
         })
-    }
-
-    /// Rows a strip (a multiple of 8, the height of an MCU).
-    pub fn rows(&self) -> u32 {
-        STRIP_MCU_ROWS as u32 * 8
-    }
-
-    /// The encoded strip of `rgb`: tightly packed RGB8 rows, `rows()` of
-    /// them, or what is left of the image for the last strip.
-    pub fn encode(&self, rgb: &[u8]) -> Result<Vec<u8>, String> {
-        let row_bytes = usize::from(self.width) * 3;
-        let rows = u16::try_from(rgb.len() / row_bytes)
-            .ok()
-            .filter(|&r| {
-                r > 0 && u32::from(r) <= self.rows() && rgb.len().is_multiple_of(row_bytes)
-            })
-            .ok_or_else(|| {
-                format!(
-                    "{} bytes are not a strip of 1-{} rows of {} pixels",
-                    rgb.len(),
-                    self.rows(),
-                    self.width
-                )
-            })?;
-        encode_one(rgb, self.width, rows, self.quality, self.interval)
-    }
-
-    /// The file: the strips' scans, top to bottom, under the first strip's
-    /// headers.
-    pub fn join(&self, mut parts: Vec<Vec<u8>>) -> Result<Vec<u8>, String> {
-        let rows = self.rows() as usize;
-        if parts.len() != usize::from(self.height).div_ceil(rows) {
-            return Err(format!(
-                "{} strips for a JPEG of {} rows",
-                parts.len(),
-                self.height
-            ));
-        }
-        if parts.len() == 1 {
-            return Ok(parts.swap_remove(0));
-        }
-        join(&parts, self.height, |i| i * STRIP_MCU_ROWS)
-            .ok_or_else(|| "the JPEG encoder wrote an unexpected stream".into())
-    }
+        .collect::<Result<_, _>>()?;
+    join(&parts, h, start).ok_or_else(|| "the JPEG encoder wrote an unexpected stream".into())
 }
 
 fn dims(v: u32) -> Result<u16, String> {
@@ -245,34 +185,6 @@ mod tests {
             let joined = encode(&rgb, w, h, 95).expect("encodes");
             let one = encode_one(&rgb, w as u16, h as u16, 95, None).expect("encodes");
             assert_eq!(decode(&joined), decode(&one), "{w}x{h}");
-        }
-    }
-
-    /// Strips encoded alone, in any order (as a render's threads finish
-    /// them), join to the bytes of `encode`; a wrong strip or count is an
-    /// error, not a broken file.
-    #[test]
-    fn strips_encoded_in_any_order_join_to_the_same_file() {
-        for (w, h) in [(64, 500), (33, 129), (40, 128), (16, 7)] {
-            let rgb = pattern(w, h);
-            let strips = Strips::new(w, h, 90).expect("strips");
-            let chunk = (w * 3 * strips.rows()) as usize;
-            let chunks: Vec<&[u8]> = rgb.chunks(chunk).collect();
-            let mut parts: Vec<(usize, Vec<u8>)> = chunks
-                .iter()
-                .enumerate()
-                .rev()
-                .map(|(i, c)| (i, strips.encode(c).expect("encodes")))
-                .collect();
-            parts.sort_by_key(|p| p.0);
-            let parts: Vec<Vec<u8>> = parts.into_iter().map(|p| p.1).collect();
-            let whole = encode(&rgb, w, h, 90).expect("encodes");
-            assert_eq!(strips.join(parts.clone()).expect("joins"), whole, "{w}x{h}");
-            if parts.len() > 1 {
-                assert!(strips.join(parts[1..].to_vec()).is_err(), "{w}x{h}");
-            }
-            assert!(strips.encode(&rgb[..chunk.min(rgb.len()) - 1]).is_err());
-            assert!(strips.encode(&[]).is_err());
         }
     }
 
