@@ -10,6 +10,8 @@
 //!   a time, adaptive blocks.
 //! - `region`: which pixels a render computes.
 //! - `on_cpu`: a render on the CPU reference.
+//! - `probes`: below a render, every pixel's hits and verdicts, or one
+//!   pixel's path.
 
 mod frames;
 mod job;
@@ -17,6 +19,7 @@ mod on_cpu;
 mod options;
 mod output;
 pub mod passes;
+mod probes;
 mod progressive;
 mod region;
 mod renderer;
@@ -26,6 +29,7 @@ mod sink;
 pub use job::{settings_text, Done, Frames, FramesDone, Job, Passes, Quiet, Stop, Target, Watch};
 pub use options::{Backend, PixelFormat, RenderOptions};
 pub use output::RenderOutput;
-pub use renderer::{pixel_path, probe, render, PreparedScene, Probed, Renderer};
+pub use probes::{pixel_path, probe, Probed};
+pub use renderer::{render, PreparedScene, Renderer};
 pub use run::run;
 pub use sink::Sink;

@@ -13,7 +13,6 @@ use crate::gpu::{Context, ContextOptions, GpuRenderOptions, GpuRenderer};
 use crate::layout::GpuScene;
 use crate::memory::{self, MemoryNeed};
 use crate::parts::cut::{Costs, Span};
-use crate::probe::{PathRecord, ProbeImage};
 use crate::scene::{Effects, Scene};
 use crate::timing::Timings;
 use crate::Error;
@@ -28,7 +27,7 @@ const _: () = assert!(crate::parts::cut::GRAIN_ROWS.is_multiple_of(cpu::packet::
 const _: () = assert!(crate::parts::cut::GRAIN_ROWS.is_multiple_of(crate::layout::WORKGROUP_SIZE));
 
 /// Where the work runs, chosen once from `RenderOptions`.
-enum Engine {
+pub(super) enum Engine {
     Gpu {
         ctx: Context,
         renderer: Box<GpuRenderer>,
@@ -40,7 +39,7 @@ enum Engine {
 /// scenes: the frames of an animation reuse its pipelines.
 pub struct Renderer {
     pub(super) options: RenderOptions,
-    engine: Engine,
+    pub(super) engine: Engine,
     /// Device creation, reported with the first render.
     setup_timings: std::sync::Mutex<Option<Timings>>,
     note: Option<String>,
@@ -264,7 +263,7 @@ impl Renderer {
         }
     }
 
-    fn gpu_options(&self, p: &Prepared) -> GpuRenderOptions {
+    pub(super) fn gpu_options(&self, p: &Prepared) -> GpuRenderOptions {
         GpuRenderOptions {
             methods: self.options.methods,
             effects: p.effects,
@@ -553,67 +552,6 @@ impl Renderer {
             samples: region.pixels(p.camera.width, p.camera.height) * u64::from(p.effects.spp),
         })
     }
-
-    /// Every pixel's primary hit and shadow verdicts (pixel centres, sample 0).
-    pub fn probe(&self, scene: &Scene) -> Result<ProbeImage, Error> {
-        let scene = &*scene.in_view_space();
-        let p = self.prepare(scene, &mut Timings::default());
-        Ok(match &self.engine {
-            Engine::Gpu { renderer, .. } => renderer.probe(
-                &GpuScene::pack(scene, &p.bvh),
-                &p.camera,
-                &self.gpu_options(&p),
-            )?,
-            Engine::Cpu(precision) => {
-                cpu::probe(scene, &p.bvh, &p.camera, &self.cpu_options(&p, *precision))
-            }
-        })
-    }
-
-    /// The path of pixel (x, y): hit, surface, each light's shadow verdict
-    /// and Phong terms.
-    pub fn pixel_path(&self, scene: &Scene, pixel: [u32; 2]) -> Result<PathRecord, Error> {
-        let o = &self.options;
-        if pixel[0] >= o.width || pixel[1] >= o.height {
-            return Err(Error::InvalidOption(format!(
-                "pixel {},{} is outside the {}x{} image (x counts from 0 at the left, y from 0 at the top)",
-                pixel[0], pixel[1], o.width, o.height
-            )));
-        }
-        let world = scene;
-        let scene = &*scene.in_view_space();
-        let p = self.prepare(scene, &mut Timings::default());
-        let record = match &self.engine {
-            Engine::Gpu { renderer, .. } => renderer.pixel_path(
-                &GpuScene::pack(scene, &p.bvh),
-                &p.camera,
-                o.background,
-                pixel,
-                &self.gpu_options(&p),
-            )?,
-            Engine::Cpu(precision) => cpu::pixel_path(
-                scene,
-                &p.bvh,
-                &p.camera,
-                &self.cpu_options(&p, *precision),
-                pixel,
-            ),
-        };
-        let record = record.in_scene_units(p.bvh.scale);
-        Ok(match world.camera {
-            Some(cam) if !cam.is_classic_placement() => record.in_world(&cam),
-            _ => record,
-        })
-    }
-
-    fn probed<T>(&self, value: T) -> Probed<T> {
-        Probed {
-            value,
-            renderer: self.name(),
-            validation_messages: self.validation_messages(),
-            note: self.note.clone(),
-        }
-    }
 }
 
 /// Renders `scene` once (a `Renderer` set up for this call only).
@@ -623,34 +561,4 @@ pub fn render(
     progress: &(dyn Fn(u64, u64) + Sync),
 ) -> Result<RenderOutput, Error> {
     Renderer::new(options)?.render(scene, progress)
-}
-
-/// A probe result and what produced it.
-pub struct Probed<T> {
-    /// What the probe found.
-    pub value: T,
-    /// As `RenderOutput::renderer`.
-    pub renderer: String,
-    /// As `RenderOutput::note`.
-    pub note: Option<String>,
-    /// As `RenderOutput::validation_messages`.
-    pub validation_messages: u32,
-}
-
-/// Every pixel's primary hit and shadow verdicts on the chosen backend.
-pub fn probe(scene: &Scene, options: &RenderOptions) -> Result<Probed<ProbeImage>, Error> {
-    let r = Renderer::new(options)?;
-    let value = r.probe(scene)?;
-    Ok(r.probed(value))
-}
-
-/// The path of pixel (x, y) on the chosen backend.
-pub fn pixel_path(
-    scene: &Scene,
-    options: &RenderOptions,
-    pixel: [u32; 2],
-) -> Result<Probed<PathRecord>, Error> {
-    let r = Renderer::new(options)?;
-    let value = r.pixel_path(scene, pixel)?;
-    Ok(r.probed(value))
 }
