@@ -57,6 +57,11 @@ pub(super) fn children_avx2<const ANY_HIT: bool>(
         let zero = _mm256_setzero_ps();
         let inf = _mm256_set1_ps(f32::INFINITY);
         let bits = _mm256_setr_epi32(1, 2, 4, 8, 16, 32, 64, 128);
+        // Per child, the entries of the rays that hit it (the others at
+        // +inf), folded over the octets by lane and across lanes once at
+        // the end: min is exact and sees no NaN (a NaN entry fails `<=`
+        // and is never chosen), so the order does not change the answer.
+        let mut entries = [inf; 4];
         for g in 0..WIDTH / 8 {
             let m8 = mask >> (8 * g) & 255;
             if m8 == 0 {
@@ -66,6 +71,8 @@ pub(super) fn children_avx2<const ANY_HIT: bool>(
             let o = [load(&soa.o[0]), load(&soa.o[1]), load(&soa.o[2])];
             let inv = [load(&soa.inv[0]), load(&soa.inv[1]), load(&soa.inv[2])];
             let bt = load(best_t);
+            // `lane` picks the child in the node's arrays and in `out`'s.
+            #[allow(clippy::needless_range_loop)]
             for lane in 0..4 {
                 if node.child[lane] == wide::EMPTY {
                     continue;
@@ -82,21 +89,35 @@ pub(super) fn children_avx2<const ANY_HIT: bool>(
                 out.hits[lane] |= hit << (8 * g);
                 if !ANY_HIT {
                     _mm256_store_ps(out.near[lane].0.as_mut_ptr().add(8 * g), t_near);
-                    // The nearest entry among the rays that hit: the others
-                    // at +inf, then a min across the lanes.
                     let chosen = _mm256_cmpeq_epi32(
                         _mm256_and_si256(_mm256_set1_epi32(hit as i32), bits),
                         bits,
                     );
                     let t = _mm256_blendv_ps(inf, t_near, _mm256_castsi256_ps(chosen));
-                    let m = _mm_min_ps(_mm256_castps256_ps128(t), _mm256_extractf128_ps::<1>(t));
-                    let m = _mm_min_ps(m, _mm_movehl_ps(m, m));
-                    let m = _mm_min_ss(m, _mm_shuffle_ps::<1>(m, m));
-                    out.nearest[lane] = out.nearest[lane].min(_mm_cvtss_f32(m));
+                    entries[lane] = _mm256_min_ps(entries[lane], t);
+                }
+            }
+        }
+        if !ANY_HIT {
+            for ((nearest, &hits), &t) in out.nearest.iter_mut().zip(&out.hits).zip(&entries) {
+                if hits != 0 {
+                    *nearest = min_across(t);
                 }
             }
         }
     }
+}
+
+/// The least of a register's eight lanes (none NaN).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+#[inline]
+fn min_across(t: std::arch::x86_64::__m256) -> f32 {
+    use std::arch::x86_64::*;
+    let m = _mm_min_ps(_mm256_castps256_ps128(t), _mm256_extractf128_ps::<1>(t));
+    let m = _mm_min_ps(m, _mm_movehl_ps(m, m));
+    let m = _mm_min_ss(m, _mm_shuffle_ps::<1>(m, m));
+    _mm_cvtss_f32(m)
 }
 
 /// An octet's rays in the axis order `k` they share: origins along kx,
