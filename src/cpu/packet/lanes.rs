@@ -114,6 +114,21 @@ impl Soa {
         }
     }
 
+    /// `f(octet, axis order, its rays)` for each octet of `rays` that
+    /// meets a leaf eight rays a register: those whose rays share an axis
+    /// order and number `OCTET_MIN_RAYS` or more, taken out of `rays`.
+    #[inline(always)]
+    pub(super) fn take_octets(&self, rays: &mut u32, mut f: impl FnMut(usize, [usize; 3], u32)) {
+        for (g, k) in self.k.iter().enumerate() {
+            let m8 = *rays >> (8 * g) & 255;
+            let Some(k) = *k else { continue };
+            if m8.count_ones() >= OCTET_MIN_RAYS {
+                *rays &= !(m8 << (8 * g));
+                f(g, k, m8);
+            }
+        }
+    }
+
     /// Ray `r` whole, for the tests a ray takes alone (made only for
     /// those: building all of a packet's rays was 7% of `table`'s
     /// instructions).

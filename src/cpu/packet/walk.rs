@@ -307,21 +307,16 @@ fn test_leaf<const SIMD: u8, const ANY_HIT: bool>(
         // of them came, else ray by ray.
         #[cfg(target_arch = "x86_64")]
         if SIMD >= AVX2 {
-            for (g, k) in p.soa.k.iter().enumerate() {
-                let m8 = rays_in >> (8 * g) & 255;
-                let Some(k) = *k else { continue };
-                if m8.count_ones() < OCTET_MIN_RAYS {
-                    continue;
-                }
-                rays_in &= !(m8 << (8 * g));
+            let soa = p.soa;
+            soa.take_octets(&mut rays_in, |g, k, m8| {
                 // SAFETY: SIMD is AVX2 or more only in
                 // `traverse_avx2` and `traverse_avx512`, which run
                 // only where the CPU has AVX2 (AVX-512F implies it).
-                let found = unsafe { hit_block_octet(leaf, p.soa, k, g, m8, p.best, p.best_t) };
+                let found = unsafe { hit_block_octet(leaf, soa, k, g, m8, p.best, p.best_t) };
                 if ANY_HIT {
                     *p.live &= !found;
                 }
-            }
+            });
         }
         while rays_in != 0 {
             let r = rays_in.trailing_zeros() as usize;
@@ -374,24 +369,19 @@ fn test_leaf<const SIMD: u8, const ANY_HIT: bool>(
                 // enough of them came, as a SIMD block's triangles.
                 #[cfg(target_arch = "x86_64")]
                 if SIMD >= AVX2 {
-                    for (g, k) in p.soa.k.iter().enumerate() {
-                        let m8 = each >> (8 * g) & 255;
-                        let Some(k) = *k else { continue };
-                        if m8.count_ones() < OCTET_MIN_RAYS {
-                            continue;
-                        }
-                        each &= !(m8 << (8 * g));
+                    let soa = p.soa;
+                    soa.take_octets(&mut each, |g, k, m8| {
                         // SAFETY: SIMD is AVX2 or more only in
                         // `traverse_avx2` and `traverse_avx512`, which run
                         // only where the CPU has AVX2.
                         let found = unsafe {
-                            hit_triangle_octet(tri, prim, p.soa, (k, g, m8), p.best, p.best_t)
+                            hit_triangle_octet(tri, prim, soa, (k, g, m8), p.best, p.best_t)
                         };
                         if ANY_HIT {
                             *p.live &= !found;
                             rays_in &= !found;
                         }
-                    }
+                    });
                 }
                 while each != 0 {
                     let r = each.trailing_zeros() as usize;
