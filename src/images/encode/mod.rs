@@ -2,8 +2,10 @@
 //! them (`framebuffer::write_atomically`), so that `render -v` shows the two
 //! and animations can encode on worker threads. Each format's encoder is
 //! the fastest well-kept one measured (`docs/benchmarks.md`, "Writing the
-//! image"): JPEG in strips on every core (`jpeg`), PNG with `png`'s choice of
-//! deflate (fdeflate by default), PPM and float EXR through `image`.
+//! image"), or glint's own where none came near: JPEG in strips on every
+//! core (`jpeg`: `jpeg-encoder`'s headers, glint's scan), PNG with `png`'s
+//! choice of deflate (fdeflate by default), PPM and float EXR through
+//! `image`.
 
 pub mod jpeg;
 
