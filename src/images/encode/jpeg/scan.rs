@@ -133,7 +133,7 @@ fn zigzag_bits(block: &[i16; 64]) -> u64 {
 /// Bit i set where coefficient i (natural order) is non-zero.
 #[cfg(target_arch = "x86_64")]
 #[inline]
-fn natural_bits(block: &[i16; 64]) -> u64 {
+pub(super) fn natural_bits(block: &[i16; 64]) -> u64 {
     use std::arch::x86_64::*;
     let p = block.as_ptr().cast::<__m128i>();
     let mut zeros = 0u64;
@@ -151,7 +151,10 @@ fn natural_bits(block: &[i16; 64]) -> u64 {
 }
 
 #[cfg(not(target_arch = "x86_64"))]
-fn natural_bits(block: &[i16; 64]) -> u64 {
+pub(super) use natural_bits_portable as natural_bits;
+
+#[cfg_attr(all(target_arch = "x86_64", not(test)), allow(dead_code))]
+pub(super) fn natural_bits_portable(block: &[i16; 64]) -> u64 {
     block
         .iter()
         .enumerate()
