@@ -66,6 +66,8 @@ macro_rules! dct_pass {
         [o0, o1, o2, o3, o4, o5, o6, o7]
     }};
 }
+// Only the AVX2 kernel expands it outside this file.
+#[cfg_attr(not(target_arch = "x86_64"), allow(unused_imports))]
 pub(super) use dct_pass;
 
 /// The portable kernel: `jpeg-encoder`'s scalar arithmetic.
