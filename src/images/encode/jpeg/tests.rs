@@ -85,11 +85,15 @@ fn one_axis(w: u32, h: u32, rows: bool, seed: u64) -> Vec<u8> {
 #[test]
 fn same_bytes_as_jpeg_encoder() {
     for (name, kernel) in kernels() {
+        // 248 and 249 rows: the last height with one strip and no restart
+        // markers, and the first with two strips and markers.
         for (w, h) in [
             (1, 1),
             (7, 5),
             (8, 8),
             (17, 9),
+            (9, 248),
+            (9, 249),
             (640, 480),
             (100, 1037),
             (17, 2000),
@@ -226,5 +230,23 @@ fn nonzero_masks_agree() {
             scan::natural_bits(&block),
             scan::natural_bits_portable(&block)
         );
+    }
+}
+
+/// However many strips the threads make, the file is the same.
+#[test]
+fn the_file_does_not_depend_on_the_threads() {
+    let (w, h) = (333, 1100);
+    let rgb = noise(w, h, 5);
+    let in_pool = |threads: usize| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .expect("a thread pool")
+            .install(|| encode(&rgb, w, h, 90).expect("encodes"))
+    };
+    let one = in_pool(1);
+    for threads in [2, 3, 7] {
+        assert!(in_pool(threads) == one, "{threads} threads");
     }
 }
