@@ -501,3 +501,26 @@ fn skipped(why: &str) {
     use std::io::Write;
     let _ = writeln!(std::io::stderr(), "SKIPPED: {why}");
 }
+
+/// The walk's order of a node's children is a stable sort of the hit
+/// lanes by their nearest entries: ties (any-hit's +inf among them) in
+/// lane order, missed lanes left out.
+#[test]
+fn hit_lanes_sort_nearest_first_and_stably() {
+    let values = [0.0, 0.5, 0.5, 2.0, f32::INFINITY];
+    let mut s = 0x1234_5678_9ABC_DEF1u64;
+    for _ in 0..20_000 {
+        let mut next = || {
+            s ^= s << 13;
+            s ^= s >> 7;
+            s ^= s << 17;
+            s
+        };
+        let hits: [u32; 4] = std::array::from_fn(|_| (next() % 3 != 0) as u32 * 7);
+        let nearest: [f32; 4] = std::array::from_fn(|_| values[(next() % 5) as usize]);
+        let mut want: Vec<usize> = (0..4).filter(|&l| hits[l] != 0).collect();
+        want.sort_by(|&a, &b| nearest[a].total_cmp(&nearest[b]));
+        let (order, n) = hit_lanes_nearest_first(hits, nearest);
+        assert_eq!(&order[..n], &want[..], "hits {hits:?}, nearest {nearest:?}");
+    }
+}

@@ -204,22 +204,7 @@ pub(super) fn traverse_with<const SIMD: u8, const ANY_HIT: bool>(
             ref near,
             nearest,
         } = kids;
-        // Hit lanes nearest first (by their nearest ray, then lane; in
-        // lane order for any-hit rays, whose entries are not computed).
-        let mut order = [0usize; 4];
-        let mut n = 0;
-        for lane in 0..4 {
-            if hits[lane] == 0 {
-                continue;
-            }
-            let mut i = n;
-            while i > 0 && nearest[order[i - 1]] > nearest[lane] {
-                order[i] = order[i - 1];
-                i -= 1;
-            }
-            order[i] = lane;
-            n += 1;
-        }
+        let (order, n) = hit_lanes_nearest_first(hits, nearest);
         // Nodes onto the stack first, farthest first, so the nearest is
         // next, and each starts loading with its own leaf blocks: the next
         // node arrives while this one's leaves are tested, and its leaves
@@ -265,6 +250,27 @@ pub(super) fn traverse_with<const SIMD: u8, const ANY_HIT: bool>(
         }
     }
     best
+}
+
+/// The lanes some ray hit, nearest first (by their nearest ray, then by
+/// lane; in lane order for any-hit rays, whose entries stay +inf), and
+/// how many there are. A sorting network on keys that order as (missed,
+/// nearest, lane) do: whether a box was hit is the branch the predictor
+/// missed most in the walk, and the network has none.
+#[inline(always)]
+pub(super) fn hit_lanes_nearest_first(hits: [u32; 4], nearest: [f32; 4]) -> ([usize; 4], usize) {
+    // A nearest entry is never negative or NaN (`t_near` is at least 0,
+    // and a NaN is never chosen), so its bits order as its value.
+    let mut key: [u64; 4] = std::array::from_fn(|lane| {
+        (u64::from(hits[lane] == 0) << 40) | (u64::from(nearest[lane].to_bits()) << 2) | lane as u64
+    });
+    for (a, b) in [(0, 1), (2, 3), (0, 2), (1, 3), (1, 2)] {
+        let (lo, hi) = (key[a].min(key[b]), key[a].max(key[b]));
+        key[a] = lo;
+        key[b] = hi;
+    }
+    let n = hits.iter().filter(|&&h| h != 0).count();
+    (key.map(|k| (k & 3) as usize), n)
 }
 
 /// One packet's state as a leaf is tested: its rays, their lanes, each
