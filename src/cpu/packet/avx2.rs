@@ -99,10 +99,9 @@ pub(super) fn children_avx2<const ANY_HIT: bool>(
             }
         }
         if !ANY_HIT {
-            for ((nearest, &hits), &t) in out.nearest.iter_mut().zip(&out.hits).zip(&entries) {
-                if hits != 0 {
-                    *nearest = min_across(t);
-                }
+            // A box no ray hit folds to the +inf it was reset to: no branch.
+            for (nearest, &t) in out.nearest.iter_mut().zip(&entries) {
+                *nearest = min_across(t);
             }
         }
     }
