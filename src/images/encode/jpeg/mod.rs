@@ -1,7 +1,7 @@
 //! Baseline JPEG (4:4:4, the IJG tables scaled by quality, as the `image`
-//! crate's encoder wrote before), written as the portable path of
-//! [`jpeg-encoder`](https://docs.rs/jpeg-encoder) writes it, byte for
-//! byte, in horizontal strips on several threads.
+//! crate's encoder wrote before), with the arithmetic of
+//! [`jpeg-encoder`](https://docs.rs/jpeg-encoder)'s portable path, in
+//! horizontal strips on several threads.
 //!
 //! `jpeg-encoder` writes the headers and so chooses the tables (`header`);
 //! glint writes the scan (`scan`), with its own kernel for colour
