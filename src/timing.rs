@@ -8,6 +8,10 @@ use std::time::{Duration, Instant};
 pub const CLOSEST_RAYS: &str = "closest rays";
 /// The count of shadow rays a render cast.
 pub const SHADOW_RAYS: &str = "shadow rays";
+/// The count of shadow rays a render left untraced because whether they
+/// were blocked could not change a pixel (the light's term leaves the
+/// colour's bits as they are); the CPU's packets count them.
+pub const UNTRACED_SHADOW_RAYS: &str = "untraced shadow rays";
 /// Bytes of finished pixels a GPU render read back to the host.
 pub const READBACK_BYTES: &str = "readback bytes";
 /// Bytes a GPU render copied to the device (scene lists and the frame);
@@ -100,6 +104,13 @@ impl Timings {
     pub fn rays(&self) -> Option<u64> {
         self.has_count(CLOSEST_RAYS)
             .then(|| self.counted(CLOSEST_RAYS) + self.counted(SHADOW_RAYS))
+    }
+
+    /// The rays the image calls for: those cast and the shadow rays left
+    /// untraced, the count a renderer that traces them all casts.
+    pub fn rays_called_for(&self) -> Option<u64> {
+        self.rays()
+            .map(|cast| cast + self.counted(UNTRACED_SHADOW_RAYS))
     }
 
     /// Adds `other`'s phases and counts.

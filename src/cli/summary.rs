@@ -6,7 +6,7 @@ use std::time::Duration;
 
 /// The end-of-render summary (`--stats`, `-v`).
 pub fn stats(output: &glint::render::RenderOutput, timings: &glint::timing::Timings) -> String {
-    use glint::timing::{CLOSEST_RAYS, SHADOW_RAYS};
+    use glint::timing::{CLOSEST_RAYS, SHADOW_RAYS, UNTRACED_SHADOW_RAYS};
     let mut s = String::from("stats:");
     let rendering = timings
         .phases
@@ -29,6 +29,13 @@ pub fn stats(output: &glint::render::RenderOutput, timings: &glint::timing::Timi
             rate / 1e6,
             rendering.as_secs_f64()
         ));
+        let untraced = timings.counted(UNTRACED_SHADOW_RAYS);
+        if untraced > 0 {
+            s.push_str(&format!(
+                "\n  untraced    {untraced} shadow rays: whether they were blocked could not \
+                 change a pixel"
+            ));
+        }
     } else {
         s.push_str(
             "\n  rays        not counted: one pass could cast more than the shader's 32-bit \

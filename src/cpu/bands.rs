@@ -60,6 +60,8 @@ pub enum Out {
 pub struct Work {
     /// Closest-hit and shadow rays cast.
     pub rays: [u64; 2],
+    /// Shadow rays left untraced: their answer could not change a pixel.
+    pub untraced: u64,
     /// CPU time the threads spent on the pixels, summed over threads
     /// (`timing::thread_cpu_time`); None where the system cannot say.
     pub cpu_time: Option<Duration>,
@@ -166,7 +168,8 @@ impl Bands<'_> {
 /// What a render's bands did, summed over threads as they finish.
 struct Tally {
     done: AtomicU64,
-    rays: [AtomicU64; 2],
+    /// Closest-hit, shadow and untraced shadow rays (`trace::rays_cast`).
+    rays: [AtomicU64; 3],
     cpu_ns: AtomicU64,
 }
 
@@ -174,7 +177,7 @@ impl Tally {
     fn new() -> Tally {
         Tally {
             done: AtomicU64::new(0),
-            rays: [AtomicU64::new(0), AtomicU64::new(0)],
+            rays: [AtomicU64::new(0), AtomicU64::new(0), AtomicU64::new(0)],
             cpu_ns: AtomicU64::new(0),
         }
     }
@@ -191,14 +194,16 @@ impl Tally {
             self.cpu_ns.fetch_add(ns, Ordering::Relaxed);
         }
         let after = trace::rays_cast();
-        for k in 0..2 {
+        for k in 0..3 {
             self.rays[k].fetch_add(after[k] - before[k], Ordering::Relaxed);
         }
     }
 
     fn work(self) -> Work {
+        let [closest, shadow, untraced] = self.rays.map(AtomicU64::into_inner);
         Work {
-            rays: self.rays.map(AtomicU64::into_inner),
+            rays: [closest, shadow],
+            untraced,
             // The clock is the system's: there for every band or for none.
             cpu_time: crate::timing::thread_cpu_time()
                 .map(|_| Duration::from_nanos(self.cpu_ns.into_inner())),

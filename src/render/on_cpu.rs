@@ -65,6 +65,7 @@ impl Renderer {
         timings.add("cpu render", start.elapsed());
         timings.count(crate::timing::CLOSEST_RAYS, work.rays[0]);
         timings.count(crate::timing::SHADOW_RAYS, work.rays[1]);
+        timings.count(crate::timing::UNTRACED_SHADOW_RAYS, work.untraced);
         if let Some(t) = work.cpu_time {
             timings.count(crate::timing::CPU_TIME_NS, t.as_nanos() as u64);
         }

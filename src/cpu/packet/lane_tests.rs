@@ -251,7 +251,14 @@ fn lane_point_light_is_the_generic_one_to_the_bit() {
             };
             let color = Vec3::new(next(), next(), next()).abs();
             let lit = crate::hash::hash_u32(round as u32) | 1;
-            add_point_light(&points, &dirs, lit, target, color, &mut colour);
+            let f = facing(&points, &dirs, target);
+            let dark = no_highlight(&f, &points, lit);
+            let mut terms = ZEROS;
+            // In two goes, as the packets fill them: first the points with
+            // no highlight, then the others.
+            fill_terms(&points, &f, dark, color, &mut terms);
+            fill_terms(&points, &f, lit & !dark, color, &mut terms);
+            add_terms(&mut colour, &terms, lit);
             let blocker = Hit {
                 t: 0.0,
                 prim: NO_HIT,
@@ -268,5 +275,52 @@ fn lane_point_light_is_the_generic_one_to_the_bit() {
                 assert_eq!(bits(lane(&colour, i)), bits(want), "round {round} lane {i}");
             }
         }
+    });
+}
+
+/// A lane `changed_by` leaves out is one whose colour comes out the same
+/// whether its light is blocked or not (so its shadow ray need not be
+/// traced); one it keeps would differ. Terms of 0, -0, far below the
+/// colour's ulp, NaN and ordinary ones, on colours of either sign and 0.
+#[test]
+fn untraced_shadow_rays_could_not_change_a_colour() {
+    both_widths(&|| {
+        let mut next = uniform(21);
+        let mut left_out = 0;
+        for round in 0..4000 {
+            let (mut colour, mut terms) = (ZEROS, ZEROS);
+            for i in 0..WIDTH {
+                for a in 0..3 {
+                    let c = match (round + i + a) % 5 {
+                        0 => 0.0,
+                        1 => -0.0,
+                        _ => next() * 4.0,
+                    };
+                    let t = match (round * 3 + i * 7 + a) % 9 {
+                        0..=2 => 0.0,
+                        3 => -0.0,
+                        4 => c * 1e-9,
+                        5 => f32::NAN,
+                        _ => next().abs(),
+                    };
+                    colour[a].0[i] = c;
+                    terms[a].0[i] = t;
+                }
+            }
+            let lit = crate::hash::hash_u32(round as u32 ^ 0x5bd1);
+            let traced = changed_by(&colour, &terms, lit);
+            assert_eq!(traced & !lit, 0, "round {round}: a lane without a surface");
+            let (mut blocked, mut clear) = (colour, colour);
+            add_terms(&mut clear, &terms, lit);
+            add_terms(&mut blocked, &terms, 0);
+            for i in 0..WIDTH {
+                let same = bits(lane(&clear, i)) == bits(lane(&blocked, i));
+                if lit >> i & 1 != 0 {
+                    assert_eq!(traced >> i & 1 == 0, same, "round {round} lane {i}");
+                    left_out += u32::from(same);
+                }
+            }
+        }
+        assert!(left_out > 0, "no lane was left out");
     });
 }

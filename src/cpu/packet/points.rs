@@ -243,20 +243,20 @@ fn offset_lanes(p: &Lanes, n: &Lanes, scale: &Lanes, out: &mut Lanes) {
     }
 }
 
-/// Adds to `colour`, in the lanes of `lit`, what an unblocked point light
-/// at `target` of colour `color` gives each point seen along `dir`
-/// (`trace::point_shading`'s contribution).
+/// How each point of a packet faces a point light: per lane L·N and
+/// max(R·V, 0) (`trace::point_shading`'s `ln` and `rv`).
+pub(super) struct Facing {
+    ln: Lanes,
+    rv: Lanes,
+}
+
+/// `Facing` of the points seen along `dir` towards a light at `target`.
 #[inline(always)]
-pub(super) fn add_point_light(
-    points: &Points,
-    dir: &V3s,
-    lit: u32,
-    target: Vec3,
-    color: Vec3,
-    colour: &mut V3s,
-) {
-    let mut rv = Lanes::ZERO;
-    let mut ln = Lanes::ZERO;
+pub(super) fn facing(points: &Points, dir: &V3s, target: Vec3) -> Facing {
+    let mut f = Facing {
+        ln: Lanes::ZERO,
+        rv: Lanes::ZERO,
+    };
     for i in 0..WIDTH {
         let (p, n, dir) = (at(&points.p, i), at(&points.n, i), at(dir, i));
         let view = [-dir[0], -dir[1], -dir[2]];
@@ -267,23 +267,73 @@ pub(super) fn add_point_light(
             n[1] * (2.0 * d) - l[1],
             n[2] * (2.0 * d) - l[2],
         ];
-        ln.0[i] = d;
-        rv.0[i] = dot(r, view).max(0.0);
+        f.ln.0[i] = d;
+        f.rv.0[i] = dot(r, view).max(0.0);
     }
+    f
+}
+
+/// The lanes of `lit` whose highlight is 0 without asking `powf`: R·V
+/// is 0 and the shininess is not (C's `pow` has 0^0 = 1).
+#[inline(always)]
+pub(super) fn no_highlight(f: &Facing, points: &Points, lit: u32) -> u32 {
+    let mut dark = 0u32;
+    for i in 0..WIDTH {
+        let zero = f.rv.0[i] == 0.0 && points.shininess.0[i] != 0.0;
+        dark |= u32::from(zero) << i;
+    }
+    dark & lit
+}
+
+/// Writes into `terms`, in the lanes of `on`, what an unblocked point
+/// light of colour `color` gives each point (`trace::point_shading`'s
+/// contribution, `powf` only for these lanes); the other lanes keep what
+/// they held.
+#[inline(always)]
+pub(super) fn fill_terms(points: &Points, f: &Facing, on: u32, color: Vec3, terms: &mut V3s) {
     let mut spec = Lanes::ZERO;
-    let mut each = lit;
+    let mut each = on;
     while each != 0 {
         let i = each.trailing_zeros() as usize;
         each &= each - 1;
-        spec.0[i] = pow_c(rv.0[i], points.shininess.0[i]);
+        spec.0[i] = pow_c(f.rv.0[i], points.shininess.0[i]);
     }
     for i in 0..WIDTH {
-        let on = lit >> i & 1 != 0;
-        let diffuse = ln.0[i].max(0.0);
+        let lane_on = on >> i & 1 != 0;
+        let diffuse = f.ln.0[i].max(0.0);
+        for (a, term) in terms.iter_mut().enumerate() {
+            let t = color[a] * (points.kd[a].0[i] * diffuse + points.ks[a].0[i] * spec.0[i]);
+            term.0[i] = if lane_on { t } else { term.0[i] };
+        }
+    }
+}
+
+/// The lanes of `lit` where adding `terms` changes `colour`'s bits in
+/// some channel. In the others the sum is the same whether the light is
+/// blocked or not (its term is 0, or too small to move the sum), so their
+/// shadow rays need not be traced.
+#[inline(always)]
+pub(super) fn changed_by(colour: &V3s, terms: &V3s, lit: u32) -> u32 {
+    let mut changed = 0u32;
+    for i in 0..WIDTH {
+        let mut moved = false;
         for a in 0..3 {
-            let term = color[a] * (points.kd[a].0[i] * diffuse + points.ks[a].0[i] * spec.0[i]);
-            let sum = colour[a].0[i] + term;
-            colour[a].0[i] = if on { sum } else { colour[a].0[i] };
+            let c = colour[a].0[i];
+            moved |= (c + terms[a].0[i]).to_bits() != c.to_bits();
+        }
+        changed |= u32::from(moved) << i;
+    }
+    changed & lit
+}
+
+/// Adds `terms` to `colour` in the lanes of `on`.
+#[inline(always)]
+pub(super) fn add_terms(colour: &mut V3s, terms: &V3s, on: u32) {
+    for i in 0..WIDTH {
+        let lane_on = on >> i & 1 != 0;
+        for a in 0..3 {
+            let sum = colour[a].0[i] + terms[a].0[i];
+            colour[a].0[i] = if lane_on { sum } else { colour[a].0[i] };
         }
     }
 }

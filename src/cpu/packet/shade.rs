@@ -4,10 +4,14 @@
 //! single ray's to the bit.
 
 use super::lanes::*;
-use super::points::{add_point_light, shadow_rays, triangle_points, Corners, Points};
+use super::points::{
+    add_terms, changed_by, facing, fill_terms, no_highlight, shadow_rays, triangle_points, Corners,
+    Points,
+};
 use super::walk::traverse_packet;
 use crate::cpu::trace::{
     centre_key, count_rays, light_at, light_term, reflect_path, surface_point, CpuScene, NO_HIT,
+    UNTRACED,
 };
 use crate::cpu::{Keep, Real};
 use crate::layout::{LIGHT_POINT, SPHERE_BIT};
@@ -173,17 +177,32 @@ fn colours_with(
             }
             continue;
         }
-        // `point_shadow_ray`'s rays (no surfaces at this light, so no
-        // grazing band). Lanes without a surface, never traced, copy a
-        // lit one's ray, so that an octet's rays share an axis order
-        // (`Soa::k`) wherever its lit ones do.
+        // Only the shadow rays whose answer can change a colour are traced:
+        // where the light's term leaves the sum's bits as they are (a 0
+        // term, as at most points facing away from it), blocked or not
+        // gives the same pixel. Asked only where the term is known without
+        // `powf` (no highlight), so that `powf` runs for unblocked points
+        // alone, as before.
         if lit == 0 {
             continue;
         }
+        let f = facing(points, &primary.dir, light.position);
+        let dark = no_highlight(&f, points, lit);
+        let mut terms = ZEROS;
+        fill_terms(points, &f, dark, light.color, &mut terms);
+        let needed = (lit & !dark) | changed_by(&colour, &terms, dark);
+        count_rays(UNTRACED, u64::from((lit & !needed).count_ones()));
+        if needed == 0 {
+            continue;
+        }
+        // `point_shadow_ray`'s rays (no surfaces at this light, so no
+        // grazing band). Lanes not traced copy a traced one's ray, so that
+        // an octet's rays share an axis order (`Soa::k`) wherever its
+        // traced ones do.
         shadow_rays(points, light.position, &mut shadows.o, &mut shadows.dir);
-        let first = lit.trailing_zeros() as usize;
+        let first = needed.trailing_zeros() as usize;
         let (o, d) = (lane(&shadows.o, first), lane(&shadows.dir, first));
-        let mut each = !lit;
+        let mut each = !needed;
         while each != 0 {
             let i = each.trailing_zeros() as usize;
             each &= each - 1;
@@ -191,22 +210,16 @@ fn colours_with(
             set_lane(&mut shadows.dir, i, d);
         }
         make_rays(shadows);
-        count_rays(1, u64::from(lit.count_ones()));
-        let blockers = traverse_packet(scene, shadows, lit, 1.0, true);
+        count_rays(1, u64::from(needed.count_ones()));
+        let blockers = traverse_packet(scene, shadows, needed, 1.0, true);
         let mut clear = 0u32;
         for (i, b) in blockers.iter().enumerate() {
             if b.prim == NO_HIT {
                 clear |= 1 << i;
             }
         }
-        add_point_light(
-            points,
-            &primary.dir,
-            lit & clear,
-            light.position,
-            light.color,
-            &mut colour,
-        );
+        fill_terms(points, &f, needed & clear & !dark, light.color, &mut terms);
+        add_terms(&mut colour, &terms, needed & clear);
     }
     for (i, px) in out.iter_mut().enumerate().take(n) {
         let local = f32::clamp01(lane(&colour, i));

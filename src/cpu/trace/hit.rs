@@ -12,9 +12,10 @@ use crate::cpu::real::Ray;
 
 thread_local! {
     /// Closest-hit and shadow rays this thread has cast (`rays_cast`), as
-    /// the shader's status counts them; a thread-local, so counting costs
-    /// no shared cache line.
-    static RAYS: std::cell::Cell<[u64; 2]> = const { std::cell::Cell::new([0; 2]) };
+    /// the shader's status counts them, and the shadow rays it left
+    /// untraced (`UNTRACED`); a thread-local, so counting costs no shared
+    /// cache line.
+    static RAYS: std::cell::Cell<[u64; 3]> = const { std::cell::Cell::new([0; 3]) };
 }
 
 #[inline]
@@ -32,9 +33,14 @@ pub(crate) fn count_rays(kind: usize, n: u64) {
     });
 }
 
-/// Closest-hit and shadow rays cast on this thread so far; the difference
-/// of two readings around some work is what that work cast.
-pub fn rays_cast() -> [u64; 2] {
+/// `count_rays`'s kind for shadow rays left untraced because their answer
+/// could not change a pixel (the packets' `points::changed_by`).
+pub(crate) const UNTRACED: usize = 2;
+
+/// Closest-hit and shadow rays cast on this thread so far, and shadow
+/// rays left untraced; the difference of two readings around some work
+/// is what that work cast.
+pub fn rays_cast() -> [u64; 3] {
     RAYS.with(std::cell::Cell::get)
 }
 

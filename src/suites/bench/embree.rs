@@ -139,8 +139,12 @@ fn last_lines(text: &str, n: usize) -> Option<String> {
 pub struct EmbreeScene {
     /// The scene file's name.
     pub name: String,
-    /// Rays one render casts: glint's count, the harness's.
+    /// Rays one render calls for, glint's count: those it casts and the
+    /// shadow rays it leaves untraced (`untraced`).
     pub rays: Option<u64>,
+    /// Of `rays`, the shadow rays glint's CPU reference left untraced:
+    /// their answer could not change a pixel.
+    pub untraced: Option<u64>,
     /// Rays one render casts, as the harness counts them.
     pub harness_rays: Option<u64>,
     /// Per round, glint's CPU reference.
@@ -258,13 +262,16 @@ pub fn run_embree(
         };
         for round in 1..=report.rounds {
             let mut timed = |r: &Renderer, ready| -> Result<Duration, Error> {
-                let mut rays = None;
+                let (mut rays, mut untraced) = (None, None);
                 let stat = repeat(n, || {
                     let out = r.render_prepared_scene(&scene, ready, &|_, _| {})?;
-                    rays = out.timings.rays();
+                    rays = out.timings.rays_called_for();
+                    let left = out.timings.counted(crate::timing::UNTRACED_SHADOW_RAYS);
+                    untraced = (left > 0).then_some(left);
                     Ok(())
                 })?;
                 result.rays = rays.or(result.rays);
+                result.untraced = untraced.or(result.untraced);
                 Ok(stat.map_or(Duration::ZERO, |s: Stat| s.median))
             };
             if let (Some(r), Some(ready)) = (&cpu, &cpu_ready) {
@@ -355,7 +362,9 @@ impl EmbreeReport {
             out,
             "{}x{}, {} threads each, median of {} renders per program and round, {} round(s) \
              (ms, round 1 / round 2 / ...); ratio = Embree time / glint time, its range over \
-             the rounds; Embree: {}",
+             the rounds; rays: those the image calls for, \"untraced\" the shadow rays of them \
+             glint's CPU reference did not trace because their answer could not change a pixel; \
+             Embree: {}",
             self.width,
             self.height,
             self.threads,
@@ -378,11 +387,15 @@ impl EmbreeReport {
             let differ = s.rays_differ().map_or_else(String::new, |off| {
                 format!(" (**differ**, {:.1}%)", off * 100.0)
             });
+            let untraced = s
+                .untraced
+                .map_or_else(String::new, |u| format!(" ({u} untraced)"));
             let _ = writeln!(
                 out,
-                "| {} | {} / {}{} | {} | {} | {} | {} | {} | {} | {} |",
+                "| {} | {}{} / {}{} | {} | {} | {} | {} | {} | {} | {} |",
                 s.name,
                 count(s.rays),
+                untraced,
                 count(s.harness_rays),
                 differ,
                 rounds_cell(&s.cpu),

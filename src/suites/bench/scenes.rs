@@ -59,8 +59,11 @@ pub struct SceneResult {
     /// CPU's primitives in its precision and its wide tree), which the
     /// render times leave out.
     pub pack: Vec<(&'static str, Duration)>,
-    /// Rays one render casts (closest-hit and shadow), as counted by the
-    /// last backend that rendered it; all backends cast the same rays.
+    /// Rays one render calls for (closest-hit and shadow), as counted by
+    /// the last backend that rendered it: the same on every backend,
+    /// though the CPU's packets leave some shadow rays untraced
+    /// (`timing::UNTRACED_SHADOW_RAYS`), counted here as the others cast
+    /// them.
     pub rays: Option<u64>,
     /// Upload + dispatch + readback, per render.
     pub gpu: Option<Stat>,
@@ -200,7 +203,7 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
                 .extend(ready.timings.phase("pack").map(|d| ("GPU", d)));
             // One untimed render first: drivers compile lazily on first use.
             let first = r.render_prepared_scene(&scene, &ready, &|_, _| {})?;
-            result.rays = first.timings.rays().or(result.rays);
+            result.rays = first.timings.rays_called_for().or(result.rays);
             let mut times = Vec::with_capacity(n);
             result.gpu = repeat(n, || {
                 let out = r.render_prepared_scene(&scene, &ready, &|_, _| {})?;
@@ -235,7 +238,7 @@ pub fn run(options: &BenchOptions, progress: &mut dyn FnMut(&str)) -> Result<Ben
                 let mut times = Vec::with_capacity(n);
                 *slot = repeat(n, || {
                     let out = r.render_prepared_scene(&scene, &ready, &|_, _| {})?;
-                    rays = out.timings.rays();
+                    rays = out.timings.rays_called_for();
                     if out.timings.has_count(CPU_TIME_NS) {
                         times.push(Duration::from_nanos(out.timings.counted(CPU_TIME_NS)));
                     }
