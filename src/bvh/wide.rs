@@ -109,12 +109,29 @@ impl LeafBlock {
         self.prims[0] != NONE
     }
 
-    /// A bit per lane that holds a triangle.
+    /// A bit per lane that holds a triangle. One SSE2 compare where the
+    /// CPU is x86_64: glam's `UVec4` compares lane by lane, and this mask,
+    /// asked at every leaf test, was 2% of the packets' instructions on the
+    /// 240k grid (callgrind).
     #[inline(always)]
     pub fn lanes(&self) -> u32 {
-        glam::UVec4::from_array(self.prims)
-            .cmpne(glam::UVec4::splat(NONE))
-            .bitmask()
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::x86_64::*;
+            // SAFETY: SSE2 is part of x86_64; the load is unaligned and
+            // reads the four u32 of `prims`.
+            unsafe {
+                let prims = _mm_loadu_si128(self.prims.as_ptr().cast());
+                let unused = _mm_cmpeq_epi32(prims, _mm_set1_epi32(NONE as i32));
+                !(_mm_movemask_ps(_mm_castsi128_ps(unused)) as u32) & 15
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            glam::UVec4::from_array(self.prims)
+                .cmpne(glam::UVec4::splat(NONE))
+                .bitmask()
+        }
     }
 }
 
@@ -407,6 +424,22 @@ pub(crate) mod tests {
             assert_eq!(leaves, want, "{n} triangles");
             assert_eq!(wide.leaves.len(), leaves.len(), "one block a leaf");
             assert!(wide.nodes.len() <= bvh.nodes.len() / 2 + 1);
+        }
+    }
+
+    /// The lane mask is the lanes whose reference is not `NONE`, for every
+    /// pattern of used and unused lanes (not only the filled-in-order ones
+    /// `collapse` makes).
+    #[test]
+    fn lanes_are_the_used_references() {
+        for pattern in 0..16u32 {
+            let mut block = LeafBlock::EMPTY;
+            for lane in 0..4 {
+                if pattern >> lane & 1 == 1 {
+                    block.prims[lane] = [0, 7, NONE - 1, 1 << 31][lane];
+                }
+            }
+            assert_eq!(block.lanes(), pattern, "pattern {pattern:#06b}");
         }
     }
 }

@@ -62,6 +62,8 @@ pub(super) fn children_avx2<const ANY_HIT: bool>(
         // the end: min is exact and sees no NaN (a NaN entry fails `<=`
         // and is never chosen), so the order does not change the answer.
         let mut entries = [inf; 4];
+        // Kept in registers over the octets, stored once.
+        let mut hits = [0u32; 4];
         for g in 0..WIDTH / 8 {
             let m8 = mask >> (8 * g) & 255;
             if m8 == 0 {
@@ -86,7 +88,7 @@ pub(super) fn children_avx2<const ANY_HIT: bool>(
                 // No branch on `hit`: whether an octet meets a box is what
                 // the predictor guesses worst, and with no ray in it the
                 // stores below are never read and the min keeps +inf.
-                out.hits[lane] |= hit << (8 * g);
+                hits[lane] |= hit << (8 * g);
                 if !ANY_HIT {
                     _mm256_store_ps(out.near[lane].0.as_mut_ptr().add(8 * g), t_near);
                     let chosen = _mm256_cmpeq_epi32(
@@ -98,6 +100,7 @@ pub(super) fn children_avx2<const ANY_HIT: bool>(
                 }
             }
         }
+        out.hits = hits;
         if !ANY_HIT {
             // A box no ray hit folds to the +inf it was reset to: no branch.
             for (nearest, &t) in out.nearest.iter_mut().zip(&entries) {

@@ -524,3 +524,18 @@ fn hit_lanes_sort_nearest_first_and_stably() {
         assert_eq!(&order[..n], &want[..], "hits {hits:?}, nearest {nearest:?}");
     }
 }
+
+/// The any-hit walk's table orders a node's children as the sorting
+/// network does when every entry is +inf: hit lanes in lane order.
+#[test]
+fn any_hit_order_is_the_networks_for_every_mask() {
+    for mask in 0..16u32 {
+        let hits: [u32; 4] = std::array::from_fn(|l| (mask >> l & 1) * (l as u32 + 3));
+        let (order, n) = hit_lanes_in_order(hits);
+        let (want, want_n) = hit_lanes_nearest_first(hits, [f32::INFINITY; 4]);
+        assert_eq!(n, want_n, "mask {mask:#06b}");
+        assert_eq!(&order[..n], &want[..n], "mask {mask:#06b}");
+        let want: Vec<usize> = (0..4).filter(|&l| mask >> l & 1 == 1).collect();
+        assert_eq!(&order[..n], &want[..], "mask {mask:#06b}");
+    }
+}
