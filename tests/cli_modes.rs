@@ -562,51 +562,6 @@ fn crop_parts_stitch_to_the_full_image() {
     assert!(stderr(&o).contains("no alpha channel"), "{}", stderr(&o));
 }
 
-/// The CPU's packets leave untraced the shadow rays whose answer could not
-/// change a pixel and say how many; cast and untraced together are the
-/// shadow rays the shader casts, which traces them all.
-#[test]
-fn untraced_shadow_rays_add_up_to_the_shaders() {
-    let Some(dir) = classic_dir() else { return };
-    let d = tmp();
-    let scene = dir.join("spheres.scene").display().to_string();
-    let run = |backend: &str| {
-        let args = [
-            "render",
-            &scene,
-            "s.png",
-            "--backend",
-            backend,
-            "--stats",
-            "--width",
-            "160",
-            "--height",
-            "120",
-        ];
-        let o = glint(&args, d.path());
-        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
-        stdout(&o)
-    };
-    let cpu = run("cpu");
-    let untraced: u64 = cpu
-        .lines()
-        .find_map(|l| l.trim_start().strip_prefix("untraced"))
-        .and_then(|rest| rest.split_whitespace().next())
-        .and_then(|n| n.parse().ok())
-        .unwrap_or_else(|| panic!("no untraced line in\n{cpu}"));
-    let [_, primary, _, shadow] = stats_rays(&cpu);
-    assert_eq!(primary, 160 * 120, "{cpu}");
-    assert!(untraced > 0 && shadow > 0, "{cpu}");
-    if gpu().is_some() {
-        let gpu_out = run("gpu");
-        let [_, _, _, gpu_shadow] = stats_rays(&gpu_out);
-        assert!(
-            gpu_shadow.abs_diff(shadow + untraced) * 1000 <= gpu_shadow,
-            "GPU {gpu_shadow} shadow rays; CPU {shadow} and {untraced} untraced"
-        );
-    }
-}
-
 /// The rays line of `--stats`: closest-hit and shadow counts.
 fn stats_rays(out: &str) -> [u64; 4] {
     let line = out

@@ -3,10 +3,12 @@
 //! every ray traced alone gives, on every scene the packets take: the
 //! classic scenes, the project's own, the hard cases (any scale, lights on
 //! surfaces), reflections and area lights (which packets hand to single
-//! rays past the first hit).
+//! rays past the first hit); and the shadow rays they leave untraced,
+//! with those they cast, are the shader's.
 
 mod common;
 
+use common::cli::*;
 use common::*;
 use glint::bvh::Bvh;
 use glint::camera::Camera;
@@ -206,4 +208,65 @@ fn hard_cases_render_the_same_in_packets() {
         let _ = assert_packets_agree(&case.name, &case.scene, &case.camera(), Methods::Robust);
     }
     assert!(on_surfaces > 0, "no hard case has a light on a surface");
+}
+
+/// The CPU's packets leave untraced the shadow rays whose answer could not
+/// change a pixel and say how many; cast and untraced together are the
+/// shadow rays the shader casts, which traces them all.
+#[test]
+fn untraced_shadow_rays_add_up_to_the_shaders() {
+    let Some(dir) = classic_dir() else { return };
+    let d = tmp();
+    let scene = dir.join("spheres.scene").display().to_string();
+    let run = |backend: &str| {
+        let args = [
+            "render",
+            &scene,
+            "s.png",
+            "--backend",
+            backend,
+            "--stats",
+            "--width",
+            "160",
+            "--height",
+            "120",
+        ];
+        let o = glint(&args, d.path());
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        stdout(&o)
+    };
+    let cpu = run("cpu");
+    let untraced: u64 = cpu
+        .lines()
+        .find_map(|l| l.trim_start().strip_prefix("untraced"))
+        .and_then(|rest| rest.split_whitespace().next())
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no untraced line in\n{cpu}"));
+    let [primary, shadow] = ["primary", "shadow"].map(|kind| stat(&cpu, kind));
+    assert_eq!(primary, 160 * 120, "{cpu}");
+    assert!(untraced > 0 && shadow > 0, "{cpu}");
+    if gpu().is_some() {
+        let gpu_out = run("gpu");
+        let gpu_shadow = stat(&gpu_out, "shadow");
+        assert!(
+            gpu_shadow.abs_diff(shadow + untraced) * 1000 <= gpu_shadow,
+            "GPU {gpu_shadow} shadow rays; CPU {shadow} and {untraced} untraced"
+        );
+    }
+}
+
+/// The count before `kind` on `--stats`' rays line ("... 19200 primary,
+/// 0 reflected, 9368 shadow; ...").
+fn stat(out: &str, kind: &str) -> u64 {
+    let line = out
+        .lines()
+        .find(|l| l.trim_start().starts_with("rays "))
+        .unwrap_or_else(|| panic!("no rays line in\n{out}"));
+    let words: Vec<&str> = line.split_whitespace().collect();
+    words
+        .iter()
+        .position(|w| w.trim_end_matches([',', ';']) == kind)
+        .and_then(|i| words.get(i.wrapping_sub(1)))
+        .and_then(|n| n.parse().ok())
+        .unwrap_or_else(|| panic!("no {kind} count in {line}"))
 }

@@ -227,11 +227,11 @@ fn check_case(
         plant(&mut image);
     }
     let twin_output = cpu32.render(&case.scene, &quiet)?;
-    // The twin casts exactly the shader's rays (the same algorithm, ray
-    // for ray); the device counts its own only where a pass's 32-bit
+    // The twin calls for exactly the shader's rays (the same algorithm,
+    // ray for ray; its packets leave some shadow rays untraced, counted
+    // apart); the device counts its own only where a pass's 32-bit
     // counters cannot wrap, which large tiles can.
-    let twin_rays =
-        twin_output.timings.counted(CLOSEST_RAYS) + twin_output.timings.counted(SHADOW_RAYS);
+    let twin_rays = twin_output.timings.rays_called_for().unwrap_or(0);
     let twin = twin_output.framebuffer().into_owned();
     let truth = cpu64.render(&case.scene, &quiet)?.into_framebuffer();
     let against_twin = compare_framebuffers(&twin, &image, 1.0)?;
