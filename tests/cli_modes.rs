@@ -562,19 +562,6 @@ fn crop_parts_stitch_to_the_full_image() {
     assert!(stderr(&o).contains("no alpha channel"), "{}", stderr(&o));
 }
 
-/// The rays line of `--stats`: closest-hit and shadow counts.
-fn stats_rays(out: &str) -> [u64; 4] {
-    let line = out
-        .lines()
-        .find(|l| l.trim_start().starts_with("rays "))
-        .unwrap_or_else(|| panic!("no rays line in\n{out}"));
-    let numbers: Vec<u64> = line
-        .split(|c: char| !c.is_ascii_digit() && c != '.')
-        .filter_map(|w| w.parse().ok())
-        .collect();
-    [numbers[0], numbers[1], numbers[2], numbers[3]]
-}
-
 /// `--stats` counts rays by kind, and the shader counts the same rays as
 /// the CPU reference; `--quick` is the documented preview; `--threads`
 /// sizes the CPU pool.

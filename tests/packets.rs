@@ -242,31 +242,15 @@ fn untraced_shadow_rays_add_up_to_the_shaders() {
         .and_then(|rest| rest.split_whitespace().next())
         .and_then(|n| n.parse().ok())
         .unwrap_or_else(|| panic!("no untraced line in\n{cpu}"));
-    let [primary, shadow] = ["primary", "shadow"].map(|kind| stat(&cpu, kind));
+    let [_, primary, _, shadow] = stats_rays(&cpu);
     assert_eq!(primary, 160 * 120, "{cpu}");
     assert!(untraced > 0 && shadow > 0, "{cpu}");
     if gpu().is_some() {
         let gpu_out = run("gpu");
-        let gpu_shadow = stat(&gpu_out, "shadow");
+        let [_, _, _, gpu_shadow] = stats_rays(&gpu_out);
         assert!(
             gpu_shadow.abs_diff(shadow + untraced) * 1000 <= gpu_shadow,
             "GPU {gpu_shadow} shadow rays; CPU {shadow} and {untraced} untraced"
         );
     }
-}
-
-/// The count before `kind` on `--stats`' rays line ("... 19200 primary,
-/// 0 reflected, 9368 shadow; ...").
-fn stat(out: &str, kind: &str) -> u64 {
-    let line = out
-        .lines()
-        .find(|l| l.trim_start().starts_with("rays "))
-        .unwrap_or_else(|| panic!("no rays line in\n{out}"));
-    let words: Vec<&str> = line.split_whitespace().collect();
-    words
-        .iter()
-        .position(|w| w.trim_end_matches([',', ';']) == kind)
-        .and_then(|i| words.get(i.wrapping_sub(1)))
-        .and_then(|n| n.parse().ok())
-        .unwrap_or_else(|| panic!("no {kind} count in {line}"))
 }

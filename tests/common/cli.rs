@@ -56,3 +56,16 @@ pub fn glint_with_stdin(args: &[&str], dir: &Path, input: &[u8]) -> Output {
     let _ = child.stdin.take().expect("stdin").write_all(input);
     child.wait_with_output().expect("wait")
 }
+
+/// The rays line of `--stats`: all, primary, reflected and shadow rays.
+pub fn stats_rays(out: &str) -> [u64; 4] {
+    let line = out
+        .lines()
+        .find(|l| l.trim_start().starts_with("rays "))
+        .unwrap_or_else(|| panic!("no rays line in\n{out}"));
+    let numbers: Vec<u64> = line
+        .split(|c: char| !c.is_ascii_digit() && c != '.')
+        .filter_map(|w| w.parse().ok())
+        .collect();
+    [numbers[0], numbers[1], numbers[2], numbers[3]]
+}
