@@ -14,6 +14,12 @@ pub const SHADOW_RAYS: &str = "shadow rays";
 pub const UNTRACED_SHADOW_RAYS: &str = "untraced shadow rays";
 /// Bytes of finished pixels a GPU render read back to the host.
 pub const READBACK_BYTES: &str = "readback bytes";
+/// Times a GPU render's host read finished pixels back: once where the
+/// tiles were gathered on the device, else once a tile.
+pub const READBACK_READS: &str = "readback reads";
+/// Times a GPU render's host waited for a tile's passes: once a pass,
+/// or once for a chain of them (`GpuRenderOptions::chain_passes`).
+pub const PASS_WAITS: &str = "pass waits";
 /// Bytes a GPU render copied to the device (scene lists and the frame);
 /// a list the device already holds from the last render is not copied.
 pub const UPLOADED_BYTES: &str = "uploaded bytes";

@@ -14,6 +14,8 @@
 //!   for 8-bit files, the same pixels as the float render converted, and 12
 //!   for floats, the texels' own bits; on the CPU
 //!   they are made band by band in the render's threads, the same bytes.
+//! - Tiles gathered on the device into one readback buffer give the bytes
+//!   tiles read one by one give, and the host reads a whole image once.
 //! - A device failing mid-animation leaves the finished frames whole.
 
 mod common;
@@ -26,7 +28,7 @@ use glint::images::encode::EncodeOptions;
 use glint::images::framebuffer::{Image, ImageFile};
 use glint::render::{Backend, Job, PixelFormat, Quiet, RenderOptions, Renderer, Sink};
 use glint::scene::Scene;
-use glint::timing::{READBACK_BYTES, UPLOADED_BYTES};
+use glint::timing::{READBACK_BYTES, READBACK_READS, UPLOADED_BYTES};
 
 const W: u32 = 96;
 const H: u32 = 72;
@@ -337,6 +339,67 @@ fn gpu_renders_read_back_what_the_file_needs() {
             *a.output.image.to_rgb8(),
             "part {index}"
         );
+    }
+}
+
+/// Tiles gathered on the device (`GpuRenderOptions::gather`) give the
+/// bytes that tiles read one by one give: many tiles, cut short at the
+/// image's edges, that need passes and are redone resumable; whole images,
+/// crops and parts; 8-bit pixels and floats (bit for bit). A gathered whole
+/// image is read by the host once.
+#[test]
+fn tiles_gathered_on_the_device_equal_tiles_read_one_by_one() {
+    if gpu().is_none() {
+        return;
+    }
+    let scene =
+        glint::scene::read_scene(&repo_path("scenes/effects/soft_shadows.scene")).expect("parses");
+    let make = |gather: bool| {
+        let mut options = RenderOptions {
+            width: W,
+            height: H,
+            backend: Backend::Gpu,
+            tile: Some(16),
+            // Small enough that soft shadows' pixels need passes.
+            pass_budget: Some(48),
+            ..Default::default()
+        };
+        options.gpu.gather = gather;
+        Renderer::new(&options).expect("renderer")
+    };
+    let (gathered, one_by_one) = (make(true), make(false));
+    let tiles = u64::from(W.div_ceil(16) * H.div_ceil(16));
+    let crop = glint::parts::crop::Crop::parse("13,7,62,50").expect("crop");
+    let part = glint::parts::PartOf { index: 1, count: 3 };
+    let bits = |image: &Image| -> Vec<u32> {
+        match image {
+            Image::Float(fb) => fb.pixels.iter().flatten().map(|v| v.to_bits()).collect(),
+            Image::Rgb8(img) => img.as_raw().iter().map(|&v| u32::from(v)).collect(),
+        }
+    };
+    for pixels in [PixelFormat::Rgb8, PixelFormat::Float] {
+        let jobs = [
+            ("whole", Job::new(&scene)),
+            ("crop", Job::new(&scene).crop(crop)),
+            ("part", Job::new(&scene).part(part)),
+        ];
+        for (what, job) in jobs {
+            let run = |r: &Renderer| r.run(&job, &Sink::Memory(pixels), &Quiet).expect("renders");
+            let (a, b) = (run(&gathered), run(&one_by_one));
+            let at = format!("{what}, {pixels:?}");
+            assert!(bits(&a.output.image) == bits(&b.output.image), "{at}");
+            let count = |out: &glint::render::RenderOutput, name| out.timings.counted(name);
+            assert_eq!(
+                count(&a.output, READBACK_BYTES),
+                count(&b.output, READBACK_BYTES),
+                "{at}"
+            );
+            if what == "whole" {
+                assert!(count(&a.output, "passes") > tiles, "no tile needed passes");
+                assert_eq!(count(&a.output, READBACK_READS), 1, "{at}");
+                assert_eq!(count(&b.output, READBACK_READS), tiles, "{at}");
+            }
+        }
     }
 }
 

@@ -153,9 +153,12 @@ fn five_thousand_lights_and_forty_spheres_match_the_cpu() {
 }
 
 /// Where the passes split a pixel's work does not change a bit of the
-/// image: every partial sum is kept as the f32 it is.
+/// image: every partial sum is kept as the f32 it is. Nor does queueing a
+/// tile's passes back to back with one wait (`chain_passes`), which waits
+/// fewer times and counts the same rays.
 #[test]
 fn passes_do_not_change_the_image() {
+    use glint::timing::{CLOSEST_RAYS, PASS_WAITS, SHADOW_RAYS};
     let settings = Settings {
         spp: Some(4),
         ..Settings::default()
@@ -166,23 +169,49 @@ fn passes_do_not_change_the_image() {
     };
     let (one, t_one) = one.expect("render succeeds");
     for budget in [1, 7, 300] {
-        let (many, t_many) = render_passes(&scene, 12, 10, |o| {
-            o.tile_size = 8;
-            o.pass_budget = budget;
-        })
-        .expect("device")
-        .expect("render succeeds");
+        let render = |chain_passes: u32| {
+            render_passes(&scene, 12, 10, |o| {
+                o.tile_size = 8;
+                o.pass_budget = budget;
+                o.chain_passes = chain_passes;
+            })
+            .expect("device")
+            .expect("render succeeds")
+        };
+        let (many, t_many) = render(1);
+        let (chained, t_chained) = render(glint::gpu::MAX_CHAIN);
         assert!(
             t_many.counted("passes") > t_one.counted("passes"),
             "budget {budget}: {} passes, default {}",
             t_many.counted("passes"),
             t_one.counted("passes")
         );
-        for (i, (a, b)) in one.pixels.iter().zip(&many.pixels).enumerate() {
+        assert_eq!(t_many.counted(PASS_WAITS), t_many.counted("passes"));
+        assert!(
+            t_chained.counted(PASS_WAITS) < t_many.counted(PASS_WAITS),
+            "budget {budget}: chained passes waited {} times, one by one {}",
+            t_chained.counted(PASS_WAITS),
+            t_many.counted(PASS_WAITS)
+        );
+        for kind in [CLOSEST_RAYS, SHADOW_RAYS] {
+            assert_eq!(t_chained.counted(kind), t_many.counted(kind), "{kind}");
+        }
+        for (i, ((a, b), c)) in one
+            .pixels
+            .iter()
+            .zip(&many.pixels)
+            .zip(&chained.pixels)
+            .enumerate()
+        {
             assert_eq!(
                 a.map(f32::to_bits),
                 b.map(f32::to_bits),
                 "pixel {i} at pass budget {budget}"
+            );
+            assert_eq!(
+                a.map(f32::to_bits),
+                c.map(f32::to_bits),
+                "pixel {i} at pass budget {budget}, chained"
             );
         }
     }
@@ -495,10 +524,11 @@ fn progress_counts_pixels_pass_by_pass() {
             .unwrap_or_else(|e| e.into_inner())
             .push((done, total));
     };
-    let run = |pass_budget: u32, progress: &(dyn Fn(u64, u64) + Sync)| {
+    let run = |pass_budget: u32, chain_passes: u32, progress: &(dyn Fn(u64, u64) + Sync)| {
         let options = GpuRenderOptions {
             tile_size: 32,
             pass_budget,
+            chain_passes,
             effects,
             features: Features::of(&scene, &effects),
             ..Default::default()
@@ -507,7 +537,7 @@ fn progress_counts_pixels_pass_by_pass() {
             .render(&packed, &Camera::new(w, h), WHITE, &options, progress)
             .expect("GPU render succeeds")
     };
-    let (fb, timings) = run(64, &record);
+    let (fb, timings) = run(64, 1, &record);
     let calls = calls.into_inner().unwrap_or_else(|e| e.into_inner());
     let total = u64::from(w * h);
     assert!(calls.iter().all(|&(_, t)| t == total), "{calls:?}");
@@ -521,8 +551,26 @@ fn progress_counts_pixels_pass_by_pass() {
         timings.counted("passes")
     );
     // Passes do not change the image, nor the rays counted.
-    let (one, one_timings) = run(1 << 20, &|_, _| {});
+    let (one, one_timings) = run(1 << 20, 1, &|_, _| {});
     assert_eq!(fb, one);
+    // Chained passes report each pass that did work, in order.
+    let chained_calls = std::sync::Mutex::new(Vec::new());
+    let (chained, chained_timings) = run(64, glint::gpu::MAX_CHAIN, &|done, _| {
+        chained_calls
+            .lock()
+            .unwrap_or_else(|e| e.into_inner())
+            .push(done)
+    });
+    let chained_calls = chained_calls
+        .into_inner()
+        .unwrap_or_else(|e| e.into_inner());
+    assert_eq!(fb, chained);
+    assert!(
+        chained_calls.windows(2).all(|p| p[0] <= p[1]),
+        "{chained_calls:?}"
+    );
+    assert_eq!(chained_calls.last(), Some(&total));
+    assert!(chained_calls.len() as u64 <= chained_timings.counted("passes"));
     for kind in [glint::timing::CLOSEST_RAYS, glint::timing::SHADOW_RAYS] {
         assert!(timings.has_count(kind), "{kind}");
         assert_eq!(timings.counted(kind), one_timings.counted(kind), "{kind}");

@@ -31,6 +31,11 @@ pub const DEFAULT_PASS_BUDGET: u32 = 2048;
 /// ends with one core idle, and 512 keeps each submit short.
 pub const SAFE_TILE: u32 = 512;
 
+/// Most passes of a tile queued before the host waits
+/// (`GpuRenderOptions::chain_passes`): each of the renderer's tile slots
+/// holds this many command buffers, fences and status copies.
+pub const MAX_CHAIN: u32 = 8;
+
 /// Tile edge for hardware GPUs whose limits hold a whole tile's state. On
 /// the H200 at 1920x1080 (GPU time by timestamps, two runs each): the 2M
 /// triangle grid 11.2 / 5.5 / 3.6 / 2.9 ms at tiles of 256 / 512 / 1024 /
@@ -75,6 +80,9 @@ pub struct DriverProfile {
     /// A tile's first pass runs the shader without pixel state
     /// (`ONE_PASS`), redone resumable only where pixels are left.
     pub one_pass_first: bool,
+    /// Most passes of a tile queued before one host wait
+    /// (`GpuRenderOptions::chain_passes`); 1: a wait every pass.
+    pub chain_passes: u32,
     /// `--backend auto` renders on the CPU reference instead: the device
     /// renders the same image slower on the same cores.
     pub prefer_cpu_reference: bool,
@@ -123,6 +131,16 @@ impl DriverProfile {
             // first pass at the profile's tile and budget, so the try never
             // costs a redo there. Kept everywhere: it only removes work.
             one_pass_first: true,
+            // Each chained pass is still its own submission, bounded as
+            // before, so a watchdog sees nothing longer; what goes is the
+            // host's round trip between passes, while the device idles.
+            // Unmeasured on a GPU (on the H200 every tile finished in one
+            // pass); on lavapipe the device is the host's cores and the
+            // queued passes run when they would have anyway.
+            chain_passes: match kind {
+                DriverKind::Unknown => 1,
+                _ => MAX_CHAIN,
+            },
             // The image is the same (the CPU f32 twin follows the shader),
             // and lavapipe is slower than the CPU reference on the same
             // cores (docs/cli.md, "Choosing a device").
@@ -140,6 +158,7 @@ impl DriverProfile {
             address_lists: false,
             uniform_copies: false,
             one_pass_first: true,
+            chain_passes: 1,
             prefer_cpu_reference: false,
             host_memory: true,
         }
@@ -155,6 +174,7 @@ impl DriverProfile {
             ("address lists", on(self.address_lists)),
             ("uniform copies", on(self.uniform_copies)),
             ("one-pass first try", on(self.one_pass_first)),
+            ("passes queued a wait", self.chain_passes.to_string()),
             (
                 "auto prefers the CPU reference",
                 on(self.prefer_cpu_reference),

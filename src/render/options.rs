@@ -54,6 +54,9 @@ pub struct RenderOptions {
     pub tile: Option<u32>,
     /// Loop iterations one invocation may run per pass.
     pub pass_budget: Option<u32>,
+    /// Most passes of a tile queued before the host waits
+    /// (`GpuRenderOptions::chain_passes`).
+    pub chain_passes: Option<u32>,
     /// CPU f32: trace pixels in packets where they apply (`cpu::packet`);
     /// off, every ray alone, which keeps the shader's choice between two
     /// surfaces a ray meets at exactly one t (`glint check`'s twin).
@@ -105,6 +108,7 @@ impl Default for RenderOptions {
             generic: false,
             tile: None,
             pass_budget: None,
+            chain_passes: None,
             packets: true,
             pipeline_cache: None,
             gpu: GpuRenderOptions::default(),

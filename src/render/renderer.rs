@@ -149,6 +149,7 @@ impl Renderer {
                     options.gpu.tile_size = options.tile.unwrap_or(profile.tile_size);
                     options.gpu.pass_budget = options.pass_budget.unwrap_or(profile.pass_budget);
                     options.gpu.one_pass_first = profile.one_pass_first;
+                    options.gpu.chain_passes = options.chain_passes.unwrap_or(profile.chain_passes);
                     let renderer = Box::new(GpuRenderer::new(&ctx)?);
                     engine = Engine::Gpu { ctx, renderer };
                 }

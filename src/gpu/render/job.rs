@@ -11,6 +11,7 @@ use crate::scene::Effects;
 
 /// Tiles in flight at once.
 pub(super) const SLOTS: usize = 2;
+
 /// Output texels are `vec4<f32>`.
 pub(super) const TEXEL_BYTES: u64 = 16;
 
@@ -91,7 +92,7 @@ pub const RESUMABLE_REDOS: &str = "resumable redos";
 /// A cut tile is redone with its budget divided by this.
 pub(super) const BUDGET_BACKOFF: u32 = 8;
 
-pub use crate::gpu::driver::DEFAULT_PASS_BUDGET;
+pub use crate::gpu::driver::{DEFAULT_PASS_BUDGET, MAX_CHAIN};
 
 /// How the GPU renderer renders: tiles, pass budget and timeout, methods,
 /// effects and the shader's features.
@@ -130,6 +131,17 @@ pub struct GpuRenderOptions {
     /// pixel) instead of packing them: what every float render did before
     /// the pack, kept to check that the pack changes no bit.
     pub read_texels: bool,
+    /// Packed colour renders: each tile's last copy lands in its place in
+    /// one image-sized, persistently mapped readback buffer, so the host
+    /// reads the finished image once instead of placing tile by tile
+    /// (images up to `GATHER_MAX` bytes packed). False: tile by tile, as
+    /// before, kept to check that gathering changes no byte.
+    pub gather: bool,
+    /// A tile that needs passes after its first has up to this many queued
+    /// at once (2, then 4, ... up to it; at most `MAX_CHAIN`), each its own
+    /// submission, and the host waits once for them, not once a pass
+    /// (`DriverProfile::chain_passes`). 1: a wait every pass.
+    pub chain_passes: u32,
 }
 
 impl Default for GpuRenderOptions {
@@ -151,6 +163,8 @@ impl Default for GpuRenderOptions {
             one_pass_first: true,
             pack_rgb8: false,
             read_texels: false,
+            gather: true,
+            chain_passes: 1,
         }
     }
 }
@@ -180,8 +194,10 @@ pub(super) struct TileRect {
 #[derive(Clone, Copy, Debug)]
 pub(super) struct TileWork {
     pub(super) rect: TileRect,
-    /// Passes submitted so far (the one in flight included).
+    /// The number of its (first) pass in flight: 1 for its first.
     pub(super) pass: u32,
+    /// Its passes in flight, queued back to back (`chain_passes`).
+    pub(super) chain: u32,
     pub(super) budget: u32,
     /// Pixels whose work is not finished, as of the last pass read.
     pub(super) left: u32,
@@ -198,18 +214,34 @@ pub(super) struct TileWork {
     pub(super) resumable: bool,
 }
 
-/// Copies a tile's texels (row-major, `rect.size[0]` wide) into their place
-/// in an image `width` pixels wide, converting each with `f`.
+impl TileWork {
+    /// A tile before its first pass, at `budget` (at least 1).
+    pub(super) fn new(rect: TileRect, budget: u32, resumable: bool) -> TileWork {
+        TileWork {
+            rect,
+            pass: 1,
+            budget: budget.max(1),
+            left: rect.size[0] * rect.size[1],
+            rays: [0; 2],
+            chain: 1,
+            resumable,
+        }
+    }
+}
+
+/// Copies a tile's texels (row-major, rows `stride` texels apart) into
+/// their place in an image `width` pixels wide, converting each with `f`.
 pub(super) fn place_tile<S, T>(
     rect: TileRect,
-    texels: &[S],
+    (texels, stride): (&[S], usize),
     width: usize,
     image: &mut [T],
     f: impl Fn(&S) -> T,
 ) {
     let [x0, y0] = rect.origin.map(|v| v as usize);
     let w = rect.size[0] as usize;
-    for (row, src) in texels.chunks_exact(w).enumerate() {
+    for row in 0..rect.size[1] as usize {
+        let src = &texels[row * stride..row * stride + w];
         let start = (y0 + row) * width + x0;
         for (dst, t) in image[start..start + w].iter_mut().zip(src) {
             *dst = f(t);
@@ -218,14 +250,48 @@ pub(super) fn place_tile<S, T>(
 }
 
 /// `place_tile` for texels that are already the image's pixels: each row
-/// copied whole.
-pub(super) fn place_rows<T: Copy>(rect: TileRect, texels: &[T], width: usize, image: &mut [T]) {
+/// copied whole, or all at once where they span the image's width.
+pub(super) fn place_rows<T: Copy>(
+    rect: TileRect,
+    (texels, stride): (&[T], usize),
+    width: usize,
+    image: &mut [T],
+) {
     let [x0, y0] = rect.origin.map(|v| v as usize);
-    let w = rect.size[0] as usize;
-    for (row, src) in texels.chunks_exact(w).enumerate() {
+    let [w, h] = rect.size.map(|v| v as usize);
+    if [x0, w, stride] == [0, width, width] {
+        // Whole rows: one copy.
+        image[y0 * width..(y0 + h) * width].copy_from_slice(&texels[..w * h]);
+        return;
+    }
+    for row in 0..h {
+        let src = &texels[row * stride..row * stride + w];
         let start = (y0 + row) * width + x0;
         image[start..start + w].copy_from_slice(src);
     }
+}
+
+/// Most bytes a packed image may take to be gathered on the device
+/// (`GpuRenderOptions::gather`): the readback buffer holds a second copy of
+/// the image the host builds, so larger images (an f32 one over about 4K x
+/// 5K) are read tile by tile, into the host's image alone.
+pub(super) const GATHER_MAX: u64 = 256 << 20;
+
+/// The bytes of the image-sized readback buffer a `job` gathers into, or
+/// `None` where its tiles are read one by one: unpacked texels, probes,
+/// `options.gather` off, or an image over `GATHER_MAX` or the device's
+/// largest allocation.
+pub(super) fn gather_bytes(
+    job: Job,
+    pack: Option<Packing>,
+    options: &GpuRenderOptions,
+    [width, height]: [u32; 2],
+    max_allocation: u64,
+) -> Option<u64> {
+    let pack = pack?;
+    let bytes = u64::from(width) * u64::from(height) * pack.bytes();
+    let fits = bytes <= GATHER_MAX.min(max_allocation);
+    (options.gather && fits && matches!(job, Job::Image(_) | Job::Rects)).then_some(bytes)
 }
 
 /// Texels of the largest tile of a `width` x `height` image rendered with

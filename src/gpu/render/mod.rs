@@ -1,20 +1,24 @@
 //! Rendering a packed scene on the GPU, tile by tile and pass by pass:
 //! `job` (what is asked), `plan` (where each list goes), `resources` (what
-//! stays on the device), `passes` (the loop), and here the renderer.
+//! stays on the device), `passes` (the loop), `record` (a pass's commands),
+//! `status` (what a pass's status says), and here the renderer.
 //!
 //! A tile's work is split into passes of bounded size (the shader's
 //! `render_tile` runs each pixel's work as a resumable state machine with a
 //! budget of loop iterations per pass), so no invocation runs into a driver's
 //! loop limit and no submission runs long enough to trip a watchdog, whatever
-//! the scene asks for. Each pass is one submit with its own fence; after it the
-//! host reads the pass's status: pixels left (another pass), or pixels cut
-//! short (the tile is redone with a smaller budget, or the render fails naming
-//! the pixel). A tile's first pass runs a shader that keeps no pixel state;
-//! a tile with pixels left after it is redone with the resumable one
-//! (`TileWork::resumable`). Two tile slots alternate, so the GPU works on
-//! one while the host reads the other back. A tile is dispatched into a
-//! device-local buffer and copied into a host-visible one, so shaders never
-//! write across PCIe.
+//! the scene asks for. Each pass is one submit with its own fence; the host
+//! reads each pass's status: pixels left (another pass), or pixels cut short
+//! (the tile is redone with a smaller budget, or the render fails naming the
+//! pixel). A tile's later passes are queued several at a time, and the host
+//! waits once for them (`GpuRenderOptions::chain_passes`). A tile's first
+//! pass runs a shader that keeps no pixel state; a tile with pixels left
+//! after it is redone with the resumable one (`TileWork::resumable`). Two
+//! tile slots alternate, so the GPU works on one while the host reads the
+//! other back. A tile is dispatched into device-local buffers (its output
+//! and its status) and copied into host-visible ones, so shaders never write
+//! across PCIe; a packed render's tiles are copied into their places in one
+//! image the host reads once (`GpuRenderOptions::gather`).
 //!
 //! Everything a render needs on the device (command buffers, descriptor sets,
 //! fences, scene, tile and staging buffers) is created once per renderer and
@@ -26,13 +30,14 @@ mod passes;
 mod plan;
 mod record;
 mod resources;
+mod status;
 
 use std::sync::atomic::{AtomicBool, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
 use job::{place_rows, place_tile, tile_edge, tiles, Job, TileRect};
-pub use job::{tile_texels, GpuRenderOptions, DEFAULT_PASS_BUDGET, RESUMABLE_REDOS};
+pub use job::{tile_texels, GpuRenderOptions, DEFAULT_PASS_BUDGET, MAX_CHAIN, RESUMABLE_REDOS};
 use passes::Work;
 use plan::{capped, key, plan_lists, scene_uploads};
 use resources::{Gpu, Resources};
@@ -109,7 +114,7 @@ impl GpuRenderer {
         &self,
         work: Work,
         progress: &(dyn Fn(u64, u64) + Sync),
-        sink: &mut dyn FnMut(TileRect, &[u8]),
+        sink: &mut dyn FnMut(TileRect, &[u8], usize),
     ) -> Result<Timings, GpuError> {
         let mut guard = self.resources.lock().unwrap_or_else(|e| e.into_inner());
         if guard.is_none() {
@@ -302,8 +307,8 @@ impl GpuRenderer {
             // row is copied as it is.
             let mut bytes = vec![0u8; count * 3];
             let pixels: &mut [[u8; 3]] = bytemuck::cast_slice_mut(&mut bytes);
-            let timings = self.run(work, progress, &mut |rect, read| {
-                place_rows(rect, bytemuck::cast_slice(read), width, pixels)
+            let timings = self.run(work, progress, &mut |rect, read, stride| {
+                place_rows(rect, (bytemuck::cast_slice(read), stride), width, pixels)
             })?;
             let image = image::RgbImage::from_raw(camera.width, camera.height, bytes)
                 .expect("pixel count matches width * height");
@@ -312,12 +317,18 @@ impl GpuRenderer {
         // f32 R, G, B per texel (`shaders/pack_float.wgsl`), or the whole
         // texels where `read_texels` asks.
         let mut pixels = vec![[0.0f32; 3]; count];
-        let timings = self.run(work, progress, &mut |rect, bytes| {
+        let timings = self.run(work, progress, &mut |rect, bytes, stride| {
             if options.read_texels {
                 let rgba = |t: &[f32; 4]| [t[0], t[1], t[2]];
-                place_tile(rect, bytemuck::cast_slice(bytes), width, &mut pixels, rgba)
+                let texels = (bytemuck::cast_slice(bytes), stride);
+                place_tile(rect, texels, width, &mut pixels, rgba)
             } else {
-                place_rows(rect, bytemuck::cast_slice(bytes), width, &mut pixels)
+                place_rows(
+                    rect,
+                    (bytemuck::cast_slice(bytes), stride),
+                    width,
+                    &mut pixels,
+                )
             }
         })?;
         let fb = Framebuffer {
@@ -351,8 +362,9 @@ impl GpuRenderer {
                 frame: None,
             },
             &|_, _| {},
-            &mut |rect, bytes| {
-                place_tile(rect, bytemuck::cast_slice(bytes), width, &mut image, |t| *t)
+            &mut |rect, bytes, stride| {
+                let texels = (bytemuck::cast_slice(bytes), stride);
+                place_tile(rect, texels, width, &mut image, |t| *t)
             },
         )?;
         let mut probe = ProbeImage::from_texels(camera.width, camera.height, &image);
@@ -386,7 +398,7 @@ impl GpuRenderer {
                 frame: None,
             },
             &|_, _| {},
-            &mut |_, bytes| record = bytemuck::cast_slice(bytes).to_vec(),
+            &mut |_, bytes, _| record = bytemuck::cast_slice(bytes).to_vec(),
         )?;
         let mut path = PathRecord::from_texels(&record);
         path.prim = scene.scene_prim(path.prim);

@@ -2,23 +2,28 @@
 //! passes of bounded work as its pixels need (the shader's `render_tile` is
 //! a resumable state machine with a budget of loop iterations a pass), so
 //! no invocation meets a driver's loop limit and no submission trips a
-//! watchdog. After each pass the host reads its status: pixels left
-//! (another pass), or pixels cut short (the tile is redone with a smaller
-//! budget, or the render fails naming the pixel).
+//! watchdog. A tile's passes after its first are queued several at a time
+//! (`GpuRenderOptions::chain_passes`), each its own submission, and the host
+//! waits once for them; then it reads each pass's status (`status`): pixels
+//! left (more passes), or pixels cut short (the tile is redone with a
+//! smaller budget, or the render fails naming the pixel). A finished tile's
+//! texels are read at once, or gathered on the device into one image the
+//! host reads at the end.
 
 use std::collections::VecDeque;
 use std::sync::atomic::{AtomicBool, Ordering};
-use std::time::{Duration, Instant};
+use std::time::Instant;
 
 use ash::vk;
 
 use super::job::{
-    tile_edge, tile_texels, tiles, GpuRenderOptions, Job, Packing, TileRect, TileWork,
-    BUDGET_BACKOFF, B_FRAME, B_OUTPUT, B_STATE, PATH_MAX_LIGHTS, RESUMABLE_REDOS, SLOTS,
-    TEXEL_BYTES,
+    gather_bytes, tile_edge, tile_texels, tiles, GpuRenderOptions, Job, Packing, TileRect,
+    TileWork, B_FRAME, B_OUTPUT, B_STATE, MAX_CHAIN, PATH_MAX_LIGHTS, SLOTS, TEXEL_BYTES,
 };
 use super::plan::{capped, check_limits, key, scene_uploads, upload};
-use super::resources::{scene_buffer, Gpu, Resources};
+use super::record::{Copies, Gather};
+use super::resources::{scene_buffer, Gpu, Resources, Slot};
+use super::status::{after_passes, Tally};
 use crate::camera::Camera;
 use crate::gpu::bindings::Lists;
 use crate::gpu::error::GpuError;
@@ -26,12 +31,10 @@ use crate::gpu::pipeline::{Kernel, PipelineKey};
 use crate::gpu::present::FrameTarget;
 
 use crate::layout::{
-    uniform_copy, GpuPixelState, GpuScene, GpuStatus, ADDRESS_LISTS, PATH_HEADER, PATH_PER_LIGHT,
+    uniform_copy, GpuPixelState, GpuScene, ADDRESS_LISTS, PATH_HEADER, PATH_PER_LIGHT,
     UNIFORM_FIRST, UNIFORM_LISTS,
 };
-use crate::timing::{
-    Timings, CLOSEST_RAYS, GPU_TIME_NS, READBACK_BYTES, SHADOW_RAYS, UPLOADED_BYTES,
-};
+use crate::timing::{Timings, UPLOADED_BYTES};
 
 /// One run of the pass loop: what to render, how, and whether its tiles
 /// start with the resumable shader (`TileWork::resumable`).
@@ -52,14 +55,17 @@ pub(super) struct Work<'a> {
 
 impl Gpu<'_> {
     /// Runs `work`'s tiles through their passes on `res`, two slots in
-    /// flight, handing each finished tile's texels to `sink`; whether a
-    /// tile needed passes (for the renderer's next start, `Render` only).
+    /// flight, handing each finished tile's texels to `sink` (the rect, its
+    /// texels, and the texels from one row's start to the next): as each
+    /// tile finishes, or all at the end where they are gathered on the
+    /// device (`job::gather_bytes`). Returns whether a tile needed passes
+    /// (for the renderer's next start, `Render` only).
     pub(super) fn run(
         &self,
         work: &Work,
         res: &mut Resources,
         progress: &(dyn Fn(u64, u64) + Sync),
-        sink: &mut dyn FnMut(TileRect, &[u8]),
+        sink: &mut dyn FnMut(TileRect, &[u8], usize),
     ) -> Result<(Timings, Option<bool>), GpuError> {
         let Work {
             scene,
@@ -77,27 +83,15 @@ impl Gpu<'_> {
         let (kernel, tiles, out_texels) = job_tiles(job, scene, camera, options, rects);
         let pack = Packing::of(job, options);
         let texel_bytes = pack.map_or(TEXEL_BYTES, Packing::bytes);
+        let size = [camera.width, camera.height];
+        let gather = self.gather(res, job, pack, options, camera)?;
         let (lists, key) = self.upload_job(work, res, kernel, out_texels, pack, &mut timings)?;
-        // Each pipeline is built when a tile first needs it: the one-pass
-        // shader for a tile's first try, the resumable one after it
-        // (`TileWork::resumable`); a probe's is `key`'s.
-        let mut built: [Option<vk::Pipeline>; 2] = [None; 2];
-        let mut pipeline_for = |work: &TileWork, timings: &mut Timings| {
-            let slot = &mut built[usize::from(work.resumable)];
-            if let Some(p) = *slot {
-                return Ok(p);
-            }
-            let (p, build_time, _) = self.pipeline.get(PipelineKey {
-                one_pass: key.one_pass && !work.resumable,
-                ..key
-            })?;
-            if !build_time.is_zero() {
-                timings.add("pipeline", build_time);
-            }
-            *slot = Some(p);
-            Ok::<_, GpuError>(p)
+        // Tiles finished whose texels wait in the gathered image.
+        let mut gathered: Vec<TileRect> = Vec::new();
+        let mut pipelines = TilePipelines {
+            key,
+            built: [None; 2],
         };
-
         let mut in_flight: VecDeque<(usize, TileWork)> = VecDeque::new();
         let total_pixels: u64 = tiles.iter().map(|t| u64::from(t.size[0] * t.size[1])).sum();
         let mut tally = Tally::default();
@@ -105,6 +99,11 @@ impl Gpu<'_> {
         let start_resumable =
             kernel == Kernel::Render && (start_resumable || !options.one_pass_first);
         let mut needed_passes = false;
+        // The window cancels between passes: it keeps a wait a pass.
+        let max_chain = match cancel {
+            Some(_) => 1,
+            None => options.chain_passes.clamp(1, MAX_CHAIN),
+        };
         let dispatch_start = Instant::now();
         let mut next_tile = tiles.iter();
         let mut free: Vec<usize> = (0..SLOTS).rev().collect();
@@ -125,19 +124,12 @@ impl Gpu<'_> {
                             break;
                         };
                         free.pop();
-                        let work = TileWork {
-                            rect,
-                            pass: 1,
-                            budget: options.pass_budget.max(1),
-                            left: rect.size[0] * rect.size[1],
-                            rays: [0; 2],
-                            // A tile of this render needed passes: so will this.
-                            resumable: start_resumable || needed_passes,
-                        };
-                        (s, work)
+                        // A tile of this render needed passes: so will this.
+                        let resumable = start_resumable || needed_passes;
+                        (s, TileWork::new(rect, options.pass_budget, resumable))
                     }
                 };
-                let p = pipeline_for(&work, &mut timings)?;
+                let p = pipelines.get(self, &work, &mut timings)?;
                 let packing = pack.map(|k| {
                     let p = res.pack[k.index()].as_ref().expect("bound by upload_job");
                     (p, s, k)
@@ -148,9 +140,13 @@ impl Gpu<'_> {
                     (lists, job),
                     work,
                     out_texels,
-                    (target, packing),
+                    Copies {
+                        target,
+                        pack: packing,
+                        gather,
+                    },
                 )?;
-                tally.passes += 1;
+                tally.passes += u64::from(work.chain);
                 in_flight.push_back((s, work));
             }
             let Some((s, mut work)) = in_flight.pop_front() else {
@@ -158,43 +154,49 @@ impl Gpu<'_> {
             };
             let slot = &res.slots[s];
             self.wait(slot, work, options)?;
+            tally.waits += 1;
             if cancelled() {
                 free.push(s);
                 continue;
             }
-            match self.dispatch_time(slot) {
+            match self.dispatch_time(slot, work.chain) {
                 Some(t) => tally.device_time += t,
                 None => tally.timed_by_device = false,
             }
-            let status: GpuStatus =
-                *bytemuck::from_bytes(&slot.status.mapped()[..std::mem::size_of::<GpuStatus>()]);
-            if let Some(needs) = next_pass(&mut work, &status, kernel, camera.width, &mut tally)? {
-                needed_passes |= needs;
-                // Every pass reports, a redone tile's with no pixel finished.
-                if kernel == Kernel::Render && status.cut == 0 {
-                    progress(tally.done_pixels, total_pixels);
-                }
+            let report = |t: &Tally| progress(t.done_pixels, total_pixels);
+            let (done, needs) = after_passes(
+                &mut work,
+                slot,
+                (kernel, camera.width),
+                max_chain,
+                &mut tally,
+                &report,
+            )?;
+            needed_passes |= needs;
+            if !done {
+                again = Some((s, work));
+                continue;
+            }
+            if gather.is_some() {
+                gathered.push(work.rect);
             } else {
-                let start = Instant::now();
                 let n = match job {
                     Job::Image(_) | Job::Rects => u64::from(work.rect.size[0] * work.rect.size[1]),
                     Job::Pixel(_) => out_texels,
                 };
-                let bytes = (n * texel_bytes) as usize;
-                sink(work.rect, &slot.readback.get().mapped()[..bytes]);
-                tally.readback += start.elapsed();
-                tally.readback_bytes += bytes as u64;
-                tally.rays[0] += work.rays[0] + u64::from(status.closest_rays);
-                tally.rays[1] += work.rays[1] + u64::from(status.shadow_rays);
-                tally.done_pixels += u64::from(work.left);
-                progress(tally.done_pixels, total_pixels);
-                free.push(s);
-                continue;
+                read_tile(slot, work.rect, n * texel_bytes, sink, &mut tally);
             }
-            again = Some((s, work));
+            tally.rays[0] += work.rays[0];
+            tally.rays[1] += work.rays[1];
+            tally.done_pixels += u64::from(work.left);
+            report(&tally);
+            free.push(s);
         }
         if cancelled() {
             return Err(GpuError::Cancelled);
+        }
+        if gather.is_some() {
+            read_gathered(res, (job, size, texel_bytes), &gathered, sink, &mut tally);
         }
         // A pass's counters are 32-bit: counts that may have wrapped are
         // left out rather than shown wrong.
@@ -209,6 +211,27 @@ impl Gpu<'_> {
             key.corners,
         );
         Ok((timings, (kernel == Kernel::Render).then_some(needed_passes)))
+    }
+
+    /// The image-sized readback buffer `job`'s tiles are gathered into,
+    /// where they are (`job::gather_bytes`).
+    fn gather(
+        &self,
+        res: &mut Resources,
+        job: Job,
+        pack: Option<Packing>,
+        options: &GpuRenderOptions,
+        camera: &Camera,
+    ) -> Result<Option<Gather>, GpuError> {
+        let size = [camera.width, camera.height];
+        let Some(bytes) = gather_bytes(job, pack, options, size, self.shared.limits.max_allocation)
+        else {
+            return Ok(None);
+        };
+        Ok(Some(Gather {
+            buffer: res.gathered.at_least(self.shared, bytes)?.raw,
+            width: camera.width,
+        }))
     }
 
     /// Uploads what `work` reads that the device does not hold yet, binds
@@ -279,7 +302,10 @@ impl Gpu<'_> {
             uploads[0].bytes = bytemuck::bytes_of(&frame).to_vec().into();
         }
         let uploaded = self.upload(res, &uploads)?;
+        // A tile's texels cross to the host as `pack` makes them.
+        let readback = pack.map_or(out_bytes, |p| p.buffer_bytes(out_texels));
         for slot in &mut res.slots {
+            slot.readback.at_least(self.shared, readback)?;
             self.bind_slot(
                 slot,
                 &res.scene,
@@ -297,6 +323,90 @@ impl Gpu<'_> {
         timings.count(UPLOADED_BYTES, uploaded);
         Ok((lists, key))
     }
+}
+
+/// Each pipeline is built when a tile first needs it: the one-pass shader
+/// for a tile's first try, the resumable one after it
+/// (`TileWork::resumable`); a probe's is `key`'s.
+struct TilePipelines {
+    key: PipelineKey,
+    built: [Option<vk::Pipeline>; 2],
+}
+
+impl TilePipelines {
+    fn get(
+        &mut self,
+        gpu: &Gpu,
+        work: &TileWork,
+        timings: &mut Timings,
+    ) -> Result<vk::Pipeline, GpuError> {
+        let slot = &mut self.built[usize::from(work.resumable)];
+        if let Some(p) = *slot {
+            return Ok(p);
+        }
+        let (p, build_time, _) = gpu.pipeline.get(PipelineKey {
+            one_pass: self.key.one_pass && !work.resumable,
+            ..self.key
+        })?;
+        if !build_time.is_zero() {
+            timings.add("pipeline", build_time);
+        }
+        *slot = Some(p);
+        Ok(p)
+    }
+}
+
+/// Hands a finished tile's `bytes` of texels, as its slot read them back,
+/// to `sink`.
+fn read_tile(
+    slot: &Slot,
+    rect: TileRect,
+    bytes: u64,
+    sink: &mut dyn FnMut(TileRect, &[u8], usize),
+    tally: &mut Tally,
+) {
+    let start = Instant::now();
+    sink(
+        rect,
+        &slot.readback.get().mapped()[..bytes as usize],
+        rect.size[0] as usize,
+    );
+    tally.readback += start.elapsed();
+    tally.readback_bytes += bytes;
+    tally.reads += 1;
+}
+
+/// Hands the gathered image to `sink`: whole for a whole image, else each
+/// finished tile in its place (the buffer outside them holds older
+/// renders).
+fn read_gathered(
+    res: &Resources,
+    (job, [width, height], texel_bytes): (Job, [u32; 2], u64),
+    tiles: &[TileRect],
+    sink: &mut dyn FnMut(TileRect, &[u8], usize),
+    tally: &mut Tally,
+) {
+    let start = Instant::now();
+    let image = u64::from(width) * u64::from(height) * texel_bytes;
+    let mapped = &res.gathered.get().mapped()[..image as usize];
+    let stride = width as usize;
+    if matches!(job, Job::Image(_)) {
+        let whole = TileRect {
+            origin: [0, 0],
+            size: [width, height],
+        };
+        sink(whole, mapped, stride);
+        tally.readback_bytes += image;
+    } else {
+        for &rect in tiles {
+            let [x, y] = rect.origin.map(u64::from);
+            let at = ((y * u64::from(width) + x) * texel_bytes) as usize;
+            sink(rect, &mapped[at..], stride);
+            tally.readback_bytes += u64::from(rect.size[0] * rect.size[1]) * texel_bytes;
+        }
+    }
+    tally.readback += start.elapsed();
+    tally.reads += 1;
 }
 
 /// What a job runs: its kernel, its tiles, and the texels of output a tile
@@ -331,128 +441,5 @@ fn job_tiles(
                 u64::from(PATH_HEADER + PATH_PER_LIGHT * lights),
             )
         }
-    }
-}
-
-/// What the pass loop counts on its way.
-struct Tally {
-    done_pixels: u64,
-    rays: [u64; 2],
-    device_time: Duration,
-    timed_by_device: bool,
-    readback: Duration,
-    /// What the host reads of finished tiles (status words left out).
-    readback_bytes: u64,
-    passes: u64,
-    retries: u64,
-    redone: u64,
-}
-
-impl Default for Tally {
-    fn default() -> Tally {
-        Tally {
-            done_pixels: 0,
-            rays: [0; 2],
-            device_time: Duration::ZERO,
-            timed_by_device: true,
-            readback: Duration::ZERO,
-            readback_bytes: 0,
-            passes: 0,
-            retries: 0,
-            redone: 0,
-        }
-    }
-}
-
-impl Tally {
-    /// The loop's phases and counts: `dispatch` is the loop's time less
-    /// the readback's; rays where `rays_counted`.
-    fn report(
-        &self,
-        timings: &mut Timings,
-        looped: Duration,
-        rays_counted: bool,
-        lists: Lists,
-        corners: bool,
-    ) {
-        timings.add("dispatch", looped.saturating_sub(self.readback));
-        timings.add("readback", self.readback);
-        timings.count(READBACK_BYTES, self.readback_bytes);
-        timings.count("passes", self.passes);
-        if self.timed_by_device {
-            timings.count(GPU_TIME_NS, self.device_time.as_nanos() as u64);
-        }
-        if rays_counted {
-            timings.count(CLOSEST_RAYS, self.rays[0]);
-            timings.count(SHADOW_RAYS, self.rays[1]);
-        }
-        match lists {
-            Lists::Split => timings.count("split lists", 1),
-            Lists::Uniform => timings.count("uniform lists", 1),
-            Lists::Address => timings.count("address lists", 1),
-            Lists::Plain => {}
-        }
-        if corners {
-            timings.count("uniform corners", 1);
-        }
-        if self.retries > 0 {
-            // Tiles redone with a smaller budget after a pass was cut short.
-            timings.count("retries", self.retries);
-        }
-        if self.redone > 0 {
-            // Tiles redone with the resumable shader after a one-pass try.
-            timings.count(RESUMABLE_REDOS, self.redone);
-        }
-    }
-}
-
-/// After a pass of `work` that did not finish it: the tile set up for its
-/// next pass (`Some`, with whether it needs passes), or `None` when it is
-/// done; an error when it was cut short with no smaller budget to try.
-fn next_pass(
-    work: &mut TileWork,
-    status: &GpuStatus,
-    kernel: Kernel,
-    width: u32,
-    tally: &mut Tally,
-) -> Result<Option<bool>, GpuError> {
-    if status.cut > 0 {
-        let width = width.max(1);
-        let [x, y] = [status.first_cut % width, status.first_cut / width];
-        if kernel != Kernel::Render || work.budget == 1 {
-            return Err(GpuError::Incomplete {
-                x,
-                y,
-                cut: status.cut,
-                probe: kernel != Kernel::Render,
-            });
-        }
-        // Redo the tile from its start with less work per pass: the
-        // passes are deterministic, so the image is the same.
-        work.budget = (work.budget / BUDGET_BACKOFF).max(1);
-        work.pass = 1;
-        let size = work.rect.size[0] * work.rect.size[1];
-        tally.done_pixels -= u64::from(size - work.left);
-        work.left = size;
-        work.rays = [0; 2];
-        tally.retries += 1;
-        Ok(Some(false))
-    } else if status.remaining > 0 && kernel == Kernel::Render && !work.resumable {
-        // The pass kept no state to resume from: redo the tile.
-        work.resumable = true;
-        work.pass = 1;
-        work.left = work.rect.size[0] * work.rect.size[1];
-        work.rays = [0; 2];
-        tally.redone += 1;
-        Ok(Some(true))
-    } else if status.remaining > 0 && kernel == Kernel::Render {
-        work.rays[0] += u64::from(status.closest_rays);
-        work.rays[1] += u64::from(status.shadow_rays);
-        work.pass += 1;
-        tally.done_pixels += u64::from(work.left.saturating_sub(status.remaining));
-        work.left = status.remaining.min(work.left);
-        Ok(Some(true))
-    } else {
-        Ok(None)
     }
 }

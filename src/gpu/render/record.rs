@@ -15,22 +15,68 @@ use crate::gpu::present::FrameTarget;
 use crate::gpu::small_pipeline::SmallPipeline;
 use crate::layout::{GpuStatus, GpuTile, WORKGROUP_SIZE};
 
+/// Where a pass's texels go after its dispatch.
+#[derive(Clone, Copy)]
+pub(super) struct Copies<'a> {
+    /// The window's image (`gpu::present`).
+    pub(super) target: Option<FrameTarget>,
+    /// The pack's shader, its set (the slot's index) and what it makes.
+    pub(super) pack: Option<(&'a SmallPipeline, usize, Packing)>,
+    /// The image the tile is copied into its place in.
+    pub(super) gather: Option<Gather>,
+}
+
+/// The image-sized readback buffer a render's tiles are copied into
+/// (`job::gather_bytes`), and the image's width.
+#[derive(Clone, Copy)]
+pub(super) struct Gather {
+    pub(super) buffer: vk::Buffer,
+    pub(super) width: u32,
+}
+
+impl Gather {
+    /// The copies that put a packed tile's rows (`bytes` a pixel) in their
+    /// place: one where the tile spans the image's width.
+    pub(super) fn regions(self, rect: TileRect, bytes: u64) -> Vec<vk::BufferCopy> {
+        let [x0, y0] = rect.origin.map(u64::from);
+        let [w, h] = rect.size.map(u64::from);
+        let width = u64::from(self.width);
+        let (rows, row_bytes) = if x0 == 0 && w == width {
+            (1, w * h * bytes)
+        } else {
+            (h, w * bytes)
+        };
+        (0..rows)
+            .map(|row| vk::BufferCopy {
+                src_offset: row * row_bytes,
+                dst_offset: ((y0 + row) * width + x0) * bytes,
+                size: row_bytes,
+            })
+            .collect()
+    }
+}
+
 /// `shaders/pack.wgsl`'s workgroup size: 2048^2 texels, the largest tile,
 /// stay within 65,535 workgroups.
 const PACK_GROUP: u64 = 256;
 
 impl Gpu<'_> {
-    /// The device time of the slot's last dispatch, from its timestamps.
-    pub(super) fn dispatch_time(&self, slot: &Slot) -> Option<Duration> {
+    /// The device time of the slot's last `chain` dispatches, from their
+    /// timestamps.
+    pub(super) fn dispatch_time(&self, slot: &Slot, chain: u32) -> Option<Duration> {
         if slot.queries == vk::QueryPool::null() {
             return None;
         }
+        (0..chain).map(|i| self.one_dispatch_time(slot, i)).sum()
+    }
+
+    fn one_dispatch_time(&self, slot: &Slot, i: u32) -> Option<Duration> {
         let mut ticks = [0u64; 2];
-        // SAFETY: both queries were written by the pass just waited for.
+        // SAFETY: both queries were written by a pass just waited for.
         unsafe {
             self.shared.device.get_query_pool_results(
                 slot.queries,
-                slot.first_query,
+                slot.first_query + 2 * i,
                 &mut ticks,
                 vk::QueryResultFlags::TYPE_64,
             )
@@ -55,10 +101,7 @@ impl Gpu<'_> {
         (lists, job): (Lists, Job),
         work: TileWork,
         out_texels: u64,
-        (target, pack): (
-            Option<FrameTarget>,
-            Option<(&SmallPipeline, usize, Packing)>,
-        ),
+        copies: Copies,
     ) -> Result<(), GpuError> {
         let shared = &self.shared;
         let device = &shared.device;
@@ -92,69 +135,109 @@ impl Gpu<'_> {
                 hint: "use a smaller --tile".into(),
             });
         }
-        // SAFETY: the slot's previous submission was waited for before this
-        // reuse; all handles are live.
+        // The tile's passes in flight, each its own submission (so none
+        // runs longer than one pass's budget) with its own fence, queued
+        // back to back: the host waits once for all of them (`wait`).
+        let chain = work.chain as usize;
+        // SAFETY: the slot's previous submissions were waited for before
+        // this reuse; all handles are live.
         unsafe {
-            device.reset_fences(&[slot.fence]).call("vkResetFences")?;
             device
-                .reset_command_buffer(slot.command, vk::CommandBufferResetFlags::empty())
-                .call("vkResetCommandBuffer")?;
-            device
-                .begin_command_buffer(
-                    slot.command,
-                    &vk::CommandBufferBeginInfo::default()
-                        .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
-                )
-                .call("vkBeginCommandBuffer")?;
-            self.record_dispatch(slot, pipeline, lists, groups);
-            self.record_readback(slot, pack, texels, target, rect);
-            device
-                .end_command_buffer(slot.command)
-                .call("vkEndCommandBuffer")?;
-            let cmds = [slot.command];
-            let submit = vk::SubmitInfo::default().command_buffers(&cmds);
-            if let Some(r) = crate::gpu::fault::at_submit() {
-                // Test-only (`GLINT_FAULT`): the command buffer is left
-                // recorded and unsubmitted, as after a real failure.
-                return Err(self.fail(r, work, "vkQueueSubmit", 0));
+                .reset_fences(&slot.fences[..chain])
+                .call("vkResetFences")?;
+            for i in 0..chain {
+                let command = slot.commands[i];
+                device
+                    .reset_command_buffer(command, vk::CommandBufferResetFlags::empty())
+                    .call("vkResetCommandBuffer")?;
+                device
+                    .begin_command_buffer(
+                        command,
+                        &vk::CommandBufferBeginInfo::default()
+                            .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
+                    )
+                    .call("vkBeginCommandBuffer")?;
+                self.record_dispatch(slot, i, pipeline, lists, groups);
+                // Only the last pass's texels are read: a pixel finished in
+                // an earlier one is left as it is by the passes after it.
+                if i + 1 == chain {
+                    self.record_readback(slot, command, copies, texels, rect);
+                }
+                device
+                    .end_command_buffer(command)
+                    .call("vkEndCommandBuffer")?;
+                let cmds = [command];
+                let submit = vk::SubmitInfo::default().command_buffers(&cmds);
+                if let Some(r) = crate::gpu::fault::at_submit() {
+                    // Test-only (`GLINT_FAULT`): the command buffer is left
+                    // recorded and unsubmitted, as after a real failure.
+                    return Err(self.fail(r, work, "vkQueueSubmit", 0));
+                }
+                device
+                    .queue_submit(shared.queue, &[submit], slot.fences[i])
+                    .map_err(|r| self.fail(r, work, "vkQueueSubmit", 0))?;
             }
-            device
-                .queue_submit(shared.queue, &[submit], slot.fence)
-                .map_err(|r| self.fail(r, work, "vkQueueSubmit", 0))?;
         }
         Ok(())
     }
 
-    /// Records into the slot's command buffer: the status reset, the
+    /// Records into the slot's command buffer for its `i`th pass in
+    /// flight: the wait for the passes before it, the status reset, the
     /// tile's dispatch between timestamps (where the device has them), and
-    /// the barrier that lets the copies and the host read its output.
-    fn record_dispatch(&self, slot: &Slot, pipeline: vk::Pipeline, lists: Lists, groups: [u32; 2]) {
+    /// the copy of its status into the slot's log.
+    fn record_dispatch(
+        &self,
+        slot: &Slot,
+        i: usize,
+        pipeline: vk::Pipeline,
+        lists: Lists,
+        groups: [u32; 2],
+    ) {
         let device = &self.shared.device;
+        let command = slot.commands[i];
         let reset = GpuStatus::RESET;
         let words: [u32; std::mem::size_of::<GpuStatus>() / 4] = bytemuck::cast(reset);
-        // SAFETY: the slot's command buffer is recording (`submit_pass`),
-        // its previous submission waited for; every handle is live.
+        let status_bytes = std::mem::size_of::<GpuStatus>() as u64;
+        let queries = slot.first_query + 2 * i as u32;
+        let compute = vk::PipelineStageFlags::COMPUTE_SHADER;
+        let transfer = vk::PipelineStageFlags::TRANSFER;
+        // SAFETY: the command buffer is recording (`submit_pass`), the
+        // slot's earlier submissions waited for or queued before it; every
+        // handle is live.
         unsafe {
+            // The pass before it in the queue (this tile's, chained) wrote
+            // the pixel state and read the status.
+            memory_barrier(
+                device,
+                command,
+                (
+                    compute | transfer,
+                    vk::AccessFlags::SHADER_WRITE | vk::AccessFlags::TRANSFER_WRITE,
+                ),
+                (
+                    compute | transfer,
+                    vk::AccessFlags::SHADER_READ
+                        | vk::AccessFlags::SHADER_WRITE
+                        | vk::AccessFlags::TRANSFER_WRITE,
+                ),
+            );
             // The status starts each pass at RESET: the counters at 0 and
             // first_cut at u32::MAX (a fill per word).
-            for (i, &w) in words.iter().enumerate() {
-                device.cmd_fill_buffer(slot.command, slot.status.raw, 4 * i as u64, 4, w);
+            for (k, &w) in words.iter().enumerate() {
+                device.cmd_fill_buffer(command, slot.status.raw, 4 * k as u64, 4, w);
             }
             memory_barrier(
                 device,
-                slot.command,
+                command,
+                (transfer, vk::AccessFlags::TRANSFER_WRITE),
                 (
-                    vk::PipelineStageFlags::TRANSFER,
-                    vk::AccessFlags::TRANSFER_WRITE,
-                ),
-                (
-                    vk::PipelineStageFlags::COMPUTE_SHADER,
+                    compute,
                     vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE,
                 ),
             );
-            device.cmd_bind_pipeline(slot.command, vk::PipelineBindPoint::COMPUTE, pipeline);
+            device.cmd_bind_pipeline(command, vk::PipelineBindPoint::COMPUTE, pipeline);
             device.cmd_bind_descriptor_sets(
-                slot.command,
+                command,
                 vk::PipelineBindPoint::COMPUTE,
                 self.pipeline.layout(lists).pipeline,
                 0,
@@ -162,52 +245,61 @@ impl Gpu<'_> {
                 &[],
             );
             if slot.queries != vk::QueryPool::null() {
-                device.cmd_reset_query_pool(slot.command, slot.queries, slot.first_query, 2);
+                device.cmd_reset_query_pool(command, slot.queries, queries, 2);
                 device.cmd_write_timestamp(
-                    slot.command,
+                    command,
                     vk::PipelineStageFlags::TOP_OF_PIPE,
                     slot.queries,
-                    slot.first_query,
+                    queries,
                 );
             }
-            device.cmd_dispatch(slot.command, groups[0], groups[1], 1);
+            device.cmd_dispatch(command, groups[0], groups[1], 1);
             if slot.queries != vk::QueryPool::null() {
-                device.cmd_write_timestamp(
-                    slot.command,
-                    vk::PipelineStageFlags::COMPUTE_SHADER,
-                    slot.queries,
-                    slot.first_query + 1,
-                );
+                device.cmd_write_timestamp(command, compute, slot.queries, queries + 1);
             }
             memory_barrier(
                 device,
-                slot.command,
+                command,
+                (compute, vk::AccessFlags::SHADER_WRITE),
                 (
-                    vk::PipelineStageFlags::COMPUTE_SHADER,
-                    vk::AccessFlags::SHADER_WRITE,
+                    compute | transfer,
+                    vk::AccessFlags::SHADER_READ | vk::AccessFlags::TRANSFER_READ,
                 ),
-                (
-                    vk::PipelineStageFlags::COMPUTE_SHADER
-                        | vk::PipelineStageFlags::TRANSFER
-                        | vk::PipelineStageFlags::HOST,
-                    vk::AccessFlags::SHADER_READ
-                        | vk::AccessFlags::TRANSFER_READ
-                        | vk::AccessFlags::HOST_READ,
-                ),
+            );
+            device.cmd_copy_buffer(
+                command,
+                slot.status.raw,
+                slot.log.raw,
+                &[vk::BufferCopy {
+                    src_offset: 0,
+                    dst_offset: i as u64 * status_bytes,
+                    size: status_bytes,
+                }],
+            );
+            memory_barrier(
+                device,
+                command,
+                (transfer, vk::AccessFlags::TRANSFER_WRITE),
+                (vk::PipelineStageFlags::HOST, vk::AccessFlags::HOST_READ),
             );
         }
     }
 
     /// Records the copy of the tile's texels (packed first where `pack`:
-    /// 8-bit pixels or f32 RGB) into the slot's readback buffer, and row by row into
-    /// the window's image where there is one, then the barrier before the
-    /// host reads.
+    /// 8-bit pixels or f32 RGB) into the slot's readback buffer, or row by
+    /// row into their place in the image's (`gather`); row by row into the
+    /// window's image where there is one; then the barrier before the host
+    /// reads.
     fn record_readback(
         &self,
         slot: &Slot,
-        pack: Option<(&SmallPipeline, usize, Packing)>,
+        command: vk::CommandBuffer,
+        Copies {
+            target,
+            pack,
+            gather,
+        }: Copies,
         texels: u64,
-        target: Option<FrameTarget>,
         rect: TileRect,
     ) {
         let device = &self.shared.device;
@@ -223,10 +315,10 @@ impl Gpu<'_> {
                         .invocations(texels)
                         .div_ceil(PACK_GROUP)
                         .min(u64::from(u32::MAX)) as u32;
-                    pipeline.dispatch(slot.command, set, [groups, 1]);
+                    pipeline.dispatch(command, set, [groups, 1]);
                     memory_barrier(
                         device,
-                        slot.command,
+                        command,
                         (
                             vk::PipelineStageFlags::COMPUTE_SHADER,
                             vk::AccessFlags::SHADER_WRITE,
@@ -240,16 +332,22 @@ impl Gpu<'_> {
                 }
                 None => (slot.output.get().raw, bytes),
             };
-            device.cmd_copy_buffer(
-                slot.command,
-                read_from,
-                slot.readback.get().raw,
-                &[vk::BufferCopy {
-                    src_offset: 0,
-                    dst_offset: 0,
-                    size,
-                }],
-            );
+            match (gather, pack) {
+                (Some(gather), Some((_, _, packing))) => {
+                    let regions = gather.regions(rect, packing.bytes());
+                    device.cmd_copy_buffer(command, read_from, gather.buffer, &regions);
+                }
+                _ => device.cmd_copy_buffer(
+                    command,
+                    read_from,
+                    slot.readback.get().raw,
+                    &[vk::BufferCopy {
+                        src_offset: 0,
+                        dst_offset: 0,
+                        size,
+                    }],
+                ),
+            }
             if let Some(target) = target {
                 // Row by row into the window's image (`gpu::present`): a
                 // copy on the device, so the window's mean never crosses
@@ -263,11 +361,11 @@ impl Gpu<'_> {
                         size: u64::from(rect.size[0]) * TEXEL_BYTES,
                     })
                     .collect();
-                device.cmd_copy_buffer(slot.command, slot.output.get().raw, target.buffer, &rows);
+                device.cmd_copy_buffer(command, slot.output.get().raw, target.buffer, &rows);
             }
             memory_barrier(
                 device,
-                slot.command,
+                command,
                 (
                     vk::PipelineStageFlags::TRANSFER,
                     vk::AccessFlags::TRANSFER_WRITE,
@@ -277,21 +375,24 @@ impl Gpu<'_> {
         }
     }
 
-    /// Waits for the slot's pass.
+    /// Waits, once, for the slot's passes in flight: each may take
+    /// `options.pass_timeout`.
     pub(super) fn wait(
         &self,
         slot: &Slot,
         work: TileWork,
         options: &GpuRenderOptions,
     ) -> Result<(), GpuError> {
-        let timeout = options.pass_timeout.as_nanos().min(u128::from(u64::MAX)) as u64;
-        // SAFETY: the fence belongs to this device and was submitted.
+        let chain = work.chain as usize;
+        let limit = options.pass_timeout.saturating_mul(work.chain);
+        let timeout = limit.as_nanos().min(u128::from(u64::MAX)) as u64;
+        // SAFETY: the fences belong to this device and were submitted.
         unsafe {
             self.shared
                 .device
-                .wait_for_fences(&[slot.fence], true, timeout)
+                .wait_for_fences(&slot.fences[..chain], true, timeout)
         }
-        .map_err(|r| self.fail(r, work, "vkWaitForFences", options.pass_timeout.as_secs()))
+        .map_err(|r| self.fail(r, work, "vkWaitForFences", limit.as_secs()))
     }
 
     pub(super) fn fail(

@@ -9,7 +9,8 @@ use ash::vk;
 use gpu_allocator::MemoryLocation;
 
 use super::job::{
-    Packing, B_FRAME, B_MATERIALS, B_OUTPUT, B_SKIPS, B_STATE, B_STATUS, B_TILE, SLOTS, TEXEL_BYTES,
+    Packing, B_FRAME, B_MATERIALS, B_OUTPUT, B_SKIPS, B_STATE, B_STATUS, B_TILE, MAX_CHAIN, SLOTS,
+    TEXEL_BYTES,
 };
 
 use super::plan::{ListForms, Split, Upload};
@@ -46,8 +47,8 @@ pub(super) struct Pools {
     pub(super) command_pool: vk::CommandPool,
     pub(super) descriptor_pool: vk::DescriptorPool,
     pub(super) fences: Vec<vk::Fence>,
-    /// Two timestamps per slot, around its dispatch (null when the queue
-    /// has none).
+    /// Two timestamps per pass a slot can have in flight, around its
+    /// dispatch (null when the queue has none).
     pub(super) queries: vk::QueryPool,
 }
 
@@ -128,17 +129,24 @@ impl Reusable {
 
 pub(super) struct Slot {
     pub(super) tile: Buffer,
+    /// A pass's status, counted by the shader's atomics in device memory.
     pub(super) status: Buffer,
+    /// Each pass in flight's status, copied after it, as the host reads
+    /// them.
+    pub(super) log: Buffer,
     pub(super) output: Reusable,
     /// The output's texels as the host reads them (`Packing`).
     pub(super) packed: Reusable,
     pub(super) readback: Reusable,
     pub(super) state: Reusable,
-    pub(super) command: vk::CommandBuffer,
-    pub(super) fence: vk::Fence,
+    /// A command buffer and a fence for each pass it can have in flight
+    /// (`MAX_CHAIN`).
+    pub(super) commands: Vec<vk::CommandBuffer>,
+    pub(super) fences: Vec<vk::Fence>,
     /// A descriptor set of each layout, in `Lists::ALL` order.
     pub(super) sets: [vk::DescriptorSet; 4],
-    /// Its two timestamps in `Pools::queries` (null pool: none).
+    /// Its first timestamp in `Pools::queries` (null pool: none); two a
+    /// pass in flight.
     pub(super) queries: vk::QueryPool,
     pub(super) first_query: u32,
 }
@@ -150,6 +158,9 @@ pub(super) struct Resources {
     /// Device-local scene buffers by binding (frame and scene lists).
     pub(super) scene: Vec<(usize, Reusable)>,
     pub(super) staging: Reusable,
+    /// The whole image, packed, as the host reads it: each tile's copy
+    /// lands in its place (`job::gather_bytes`).
+    pub(super) gathered: Reusable,
     pub(super) upload_command: vk::CommandBuffer,
     pub(super) upload_fence: vk::Fence,
     /// Each `Packing`'s shader, one set per slot; built when a render
@@ -157,6 +168,15 @@ pub(super) struct Resources {
     pub(super) pack: [Option<SmallPipeline>; 2],
     /// Held for its drop: frees the command buffers, sets and fences.
     pub(super) _pools: Pools,
+}
+
+impl Slot {
+    /// The status of its `i`th pass in flight, once waited for.
+    pub(super) fn status(&self, i: u32) -> GpuStatus {
+        let size = std::mem::size_of::<GpuStatus>();
+        let at = i as usize * size;
+        bytemuck::pod_read_unaligned(&self.log.mapped()[at..at + size])
+    }
 }
 
 impl Gpu<'_> {
@@ -201,7 +221,7 @@ impl Gpu<'_> {
                     .create_query_pool(
                         &vk::QueryPoolCreateInfo::default()
                             .query_type(vk::QueryType::TIMESTAMP)
-                            .query_count(2 * SLOTS as u32),
+                            .query_count(2 * MAX_CHAIN * SLOTS as u32),
                         None,
                     )
                     .call("vkCreateQueryPool")?;
@@ -245,6 +265,13 @@ impl Gpu<'_> {
                 "staging",
                 vk::BufferUsageFlags::TRANSFER_SRC,
                 MemoryLocation::CpuToGpu,
+            ),
+            // Host-visible, coherent and, where the device has it, cached:
+            // the host reads it once a render.
+            gathered: Reusable::new(
+                "image readback",
+                vk::BufferUsageFlags::TRANSFER_DST,
+                MemoryLocation::GpuToCpu,
             ),
             upload_command,
             upload_fence,
@@ -382,12 +409,23 @@ impl Gpu<'_> {
             vk::BufferUsageFlags::UNIFORM_BUFFER,
             MemoryLocation::CpuToGpu,
         )?;
-        // Read by the host after every pass; reset by the pass itself.
+        // Reset by each pass, and copied after it into the log the host
+        // reads: the shader's atomics stay in device memory.
+        let status_bytes = std::mem::size_of::<GpuStatus>() as u64;
         let status = Buffer::new(
             shared,
             &format!("status {index}"),
-            std::mem::size_of::<GpuStatus>() as u64,
-            vk::BufferUsageFlags::STORAGE_BUFFER | vk::BufferUsageFlags::TRANSFER_DST,
+            status_bytes,
+            vk::BufferUsageFlags::STORAGE_BUFFER
+                | vk::BufferUsageFlags::TRANSFER_DST
+                | vk::BufferUsageFlags::TRANSFER_SRC,
+            MemoryLocation::GpuOnly,
+        )?;
+        let log = Buffer::new(
+            shared,
+            &format!("status log {index}"),
+            status_bytes * u64::from(MAX_CHAIN),
+            vk::BufferUsageFlags::TRANSFER_DST,
             MemoryLocation::GpuToCpu,
         )?;
         let set_layouts = Lists::ALL.map(|l| self.pipeline.layout(l).set);
@@ -401,12 +439,17 @@ impl Gpu<'_> {
         }
         .call("vkAllocateDescriptorSets")?;
         let sets = [sets[0], sets[1], sets[2], sets[3]];
-        let command = self.command_buffer(pools)?;
-        let fence = self.fence(pools)?;
+        let mut commands = Vec::new();
+        let mut fences = Vec::new();
+        for _ in 0..MAX_CHAIN {
+            commands.push(self.command_buffer(pools)?);
+            fences.push(self.fence(pools)?);
+        }
         let storage = vk::BufferUsageFlags::STORAGE_BUFFER;
         Ok(Slot {
             tile,
             status,
+            log,
             output: Reusable::new(
                 &format!("tile output {index}"),
                 storage | vk::BufferUsageFlags::TRANSFER_SRC,
@@ -427,11 +470,11 @@ impl Gpu<'_> {
                 storage,
                 MemoryLocation::GpuOnly,
             ),
-            command,
-            fence,
+            commands,
+            fences,
             sets,
             queries: pools.queries,
-            first_query: 2 * index as u32,
+            first_query: 2 * MAX_CHAIN * index as u32,
         })
     }
 
@@ -451,7 +494,6 @@ impl Gpu<'_> {
     ) -> Result<(), GpuError> {
         let shared = &self.shared;
         slot.output.at_least(shared, out_bytes)?;
-        slot.readback.at_least(shared, out_bytes)?;
         slot.state.at_least(shared, state_bytes)?;
         let scene_list = |binding: usize| {
             let buffer = scene
