@@ -220,20 +220,26 @@ fn passes_do_not_change_the_image() {
 /// A tile's first pass keeps no pixel state; a tile that needs more passes
 /// is redone with the resumable shader, and so start the render's later
 /// tiles and the next render's, until a render needs only one pass a tile.
+/// With passes queued (`chain_passes`), a render after one whose tiles
+/// needed passes queues that many at each tile's start, so where no tile
+/// needs more than `MAX_CHAIN` it waits once a tile.
 #[test]
 fn tiles_that_need_passes_are_redone_resumable_and_remembered() {
+    use glint::timing::PASS_WAITS;
     let Some(gpu) = gpu() else {
         return;
     };
     // One lock for the whole sequence: the renderer remembers the last render.
     let gpu = gpu.lock().unwrap_or_else(|e| e.into_inner());
-    let render = |scene: &Scene, pass_budget: u32| {
+    let render_queued = |scene: &Scene, pass_budget: u32, chain_passes: u32| {
         render_locked(&gpu, scene, 12, 10, |o| {
             o.tile_size = 8;
             o.pass_budget = pass_budget;
+            o.chain_passes = chain_passes;
         })
         .expect("GPU render succeeds")
     };
+    let render = |scene: &Scene, pass_budget: u32| render_queued(scene, pass_budget, 1);
     let redos = |t: &Timings| t.counted(glint::gpu::RESUMABLE_REDOS);
     let simple = bowl(3);
     let heavy = effect_scene("soft_shadows");
@@ -251,6 +257,16 @@ fn tiles_that_need_passes_are_redone_resumable_and_remembered() {
     assert_eq!(redos(&t), 0);
     let (_, t) = render(&heavy, 4);
     assert!(redos(&t) > 0, "after a one-pass render, tiles try one pass");
+    // Up to five passes a tile at a budget of 128.
+    let tiles = 4;
+    render(&simple, glint::gpu::DEFAULT_PASS_BUDGET);
+    let (first, t_first) = render_queued(&heavy, 128, glint::gpu::MAX_CHAIN);
+    let (second, t_second) = render_queued(&heavy, 128, glint::gpu::MAX_CHAIN);
+    assert_eq!(first, second);
+    let waits = [&t_first, &t_second].map(|t| t.counted(PASS_WAITS));
+    assert!(waits[0] > tiles, "{waits:?}");
+    assert_eq!(waits[1], tiles);
+    assert!(t_second.counted("passes") > tiles);
 }
 
 /// A budget too large for the driver is caught, not rendered short: the

@@ -59,16 +59,7 @@ pub(crate) fn submit_and_wait(
     // SAFETY: the command buffer and fence are idle (the last submit was
     // waited for); every handle is live.
     unsafe {
-        device
-            .reset_command_buffer(command, vk::CommandBufferResetFlags::empty())
-            .call("vkResetCommandBuffer")?;
-        device
-            .begin_command_buffer(
-                command,
-                &vk::CommandBufferBeginInfo::default()
-                    .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
-            )
-            .call("vkBeginCommandBuffer")?;
+        begin(device, command)?;
         record(command);
         device
             .end_command_buffer(command)
@@ -88,6 +79,30 @@ pub(crate) fn submit_and_wait(
             .call("vkWaitForFences")?;
     }
     Ok(())
+}
+
+/// Resets `command` and begins recording it for one submission.
+///
+/// # Safety
+/// `command` is idle (its last submission waited for) and its pool is used
+/// by this thread alone.
+pub(crate) unsafe fn begin(
+    device: &ash::Device,
+    command: vk::CommandBuffer,
+) -> Result<(), GpuError> {
+    // SAFETY: as the caller promises.
+    unsafe {
+        device
+            .reset_command_buffer(command, vk::CommandBufferResetFlags::empty())
+            .call("vkResetCommandBuffer")?;
+        device
+            .begin_command_buffer(
+                command,
+                &vk::CommandBufferBeginInfo::default()
+                    .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
+            )
+            .call("vkBeginCommandBuffer")
+    }
 }
 
 /// A global memory barrier in `cmd`: the writes `src` (stages, accesses)

@@ -210,20 +210,21 @@ pub(super) struct TileWork {
     /// pass is redone from its start with the resumable shader (same
     /// image: the passes are deterministic), and the render's later tiles
     /// start resumable, as do the next render's
-    /// (`GpuRenderer::needed_passes`).
+    /// (`GpuRenderer::passes_needed`).
     pub(super) resumable: bool,
 }
 
 impl TileWork {
-    /// A tile before its first pass, at `budget` (at least 1).
-    pub(super) fn new(rect: TileRect, budget: u32, resumable: bool) -> TileWork {
+    /// A tile before its first pass, at `budget` (at least 1), with `chain`
+    /// passes queued at first (1 unless `resumable`).
+    pub(super) fn new(rect: TileRect, budget: u32, resumable: bool, chain: u32) -> TileWork {
         TileWork {
             rect,
             pass: 1,
             budget: budget.max(1),
             left: rect.size[0] * rect.size[1],
             rays: [0; 2],
-            chain: 1,
+            chain,
             resumable,
         }
     }

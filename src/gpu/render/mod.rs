@@ -32,7 +32,7 @@ mod record;
 mod resources;
 mod status;
 
-use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
@@ -59,12 +59,13 @@ pub struct GpuRenderer {
     pipeline: TracePipeline,
     /// Reused by every render; `None` until the first.
     resources: Mutex<Option<Resources>>,
-    /// Whether the last render had a tile that needed more than one pass:
-    /// the next starts its tiles resumable (`TileWork::resumable`), so a
-    /// run of renders of such work (progressive passes, animation frames)
-    /// redoes tiles only in its first. A wrong guess costs time, never
-    /// the image.
-    needed_passes: AtomicBool,
+    /// The most passes a tile of the last render needed (0 before the
+    /// first). Over one, the next starts its tiles resumable
+    /// (`TileWork::resumable`), with that many passes queued at once (up to
+    /// `chain_passes`), so a run of renders of such work (progressive
+    /// passes, animation frames) redoes tiles only in its first and waits
+    /// about once a tile. A wrong guess costs time, never the image.
+    passes_needed: AtomicU32,
     /// Set by whoever renders (`glint view`, when the view changes): the
     /// render in flight ends after its tiles in flight.
     cancel: Option<Arc<AtomicBool>>,
@@ -81,7 +82,7 @@ impl GpuRenderer {
             ctx: ctx.clone(),
             pipeline,
             resources: Mutex::new(None),
-            needed_passes: AtomicBool::new(false),
+            passes_needed: AtomicU32::new(0),
             cancel: None,
             frame: Mutex::new(None),
         })
@@ -124,16 +125,16 @@ impl GpuRenderer {
         let frame = *self.frame.lock().unwrap_or_else(|e| e.into_inner());
         let colour = matches!(work.job, Job::Image(Kernel::Render) | Job::Rects);
         let work = Work {
-            start_resumable: self.needed_passes.load(Ordering::Relaxed),
+            start_passes: self.passes_needed.load(Ordering::Relaxed),
             cancel: self.cancel.as_deref(),
             frame: frame.filter(|f| {
                 colour && [f.width, f.height] == [work.camera.width, work.camera.height]
             }),
             ..work
         };
-        let (timings, needed_passes) = self.gpu().run(&work, res, progress, sink)?;
-        if let Some(needed) = needed_passes {
-            self.needed_passes.store(needed, Ordering::Relaxed);
+        let (timings, passes_needed) = self.gpu().run(&work, res, progress, sink)?;
+        if let Some(needed) = passes_needed {
+            self.passes_needed.store(needed, Ordering::Relaxed);
         }
         Ok(timings)
     }
@@ -178,7 +179,7 @@ impl GpuRenderer {
                 lists,
                 scene,
                 &uploads,
-                self.needed_passes.load(Ordering::Relaxed) || !options.one_pass_first,
+                self.passes_needed.load(Ordering::Relaxed) > 1 || !options.one_pass_first,
             ))?
             .1)
     }
@@ -298,7 +299,7 @@ impl GpuRenderer {
             options,
             job,
             rects,
-            start_resumable: false,
+            start_passes: 0,
             cancel: None,
             frame: None,
         };
@@ -357,7 +358,7 @@ impl GpuRenderer {
                 options,
                 job,
                 rects: &[],
-                start_resumable: false,
+                start_passes: 0,
                 cancel: None,
                 frame: None,
             },
@@ -393,7 +394,7 @@ impl GpuRenderer {
                 options,
                 job,
                 rects: &[],
-                start_resumable: false,
+                start_passes: 0,
                 cancel: None,
                 frame: None,
             },

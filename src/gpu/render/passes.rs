@@ -23,7 +23,7 @@ use super::job::{
 use super::plan::{capped, check_limits, key, scene_uploads, upload};
 use super::record::{Copies, Gather};
 use super::resources::{scene_buffer, Gpu, Resources, Slot};
-use super::status::{after_passes, Tally};
+use super::status::{after_passes, Starts, Tally};
 use crate::camera::Camera;
 use crate::gpu::bindings::Lists;
 use crate::gpu::error::GpuError;
@@ -36,8 +36,8 @@ use crate::layout::{
 };
 use crate::timing::{Timings, UPLOADED_BYTES};
 
-/// One run of the pass loop: what to render, how, and whether its tiles
-/// start with the resumable shader (`TileWork::resumable`).
+/// One run of the pass loop: what to render, how, and how its tiles start
+/// (`start_passes`).
 #[derive(Clone, Copy)]
 pub(super) struct Work<'a> {
     pub(super) scene: &'a GpuScene,
@@ -46,7 +46,10 @@ pub(super) struct Work<'a> {
     pub(super) options: &'a GpuRenderOptions,
     pub(super) job: Job,
     pub(super) rects: &'a [TileRect],
-    pub(super) start_resumable: bool,
+    /// The most passes a tile of the renderer's last render needed (0:
+    /// none rendered): over one, tiles start resumable, with as many
+    /// passes queued.
+    pub(super) start_passes: u32,
     /// Set: start no more tiles or passes, and end with `Cancelled`.
     pub(super) cancel: Option<&'a AtomicBool>,
     /// Each pass's tiles are also copied here (`GpuRenderer::copy_passes_to`).
@@ -58,7 +61,7 @@ impl Gpu<'_> {
     /// flight, handing each finished tile's texels to `sink` (the rect, its
     /// texels, and the texels from one row's start to the next): as each
     /// tile finishes, or all at the end where they are gathered on the
-    /// device (`job::gather_bytes`). Returns whether a tile needed passes
+    /// device (`job::gather_bytes`). Returns the most passes a tile needed
     /// (for the renderer's next start, `Render` only).
     pub(super) fn run(
         &self,
@@ -66,14 +69,14 @@ impl Gpu<'_> {
         res: &mut Resources,
         progress: &(dyn Fn(u64, u64) + Sync),
         sink: &mut dyn FnMut(TileRect, &[u8], usize),
-    ) -> Result<(Timings, Option<bool>), GpuError> {
+    ) -> Result<(Timings, Option<u32>), GpuError> {
         let Work {
             scene,
             camera,
             options,
             job,
             rects,
-            start_resumable,
+            start_passes,
             cancel,
             frame: target,
             ..
@@ -95,14 +98,18 @@ impl Gpu<'_> {
         let mut in_flight: VecDeque<(usize, TileWork)> = VecDeque::new();
         let total_pixels: u64 = tiles.iter().map(|t| u64::from(t.size[0] * t.size[1])).sum();
         let mut tally = Tally::default();
-        // Probes keep no state and run once: they never start resumable.
-        let start_resumable =
-            kernel == Kernel::Render && (start_resumable || !options.one_pass_first);
-        let mut needed_passes = false;
-        // The window cancels between passes: it keeps a wait a pass.
-        let max_chain = match cancel {
-            Some(_) => 1,
-            None => options.chain_passes.clamp(1, MAX_CHAIN),
+        let mut starts = Starts {
+            // Probes keep no state and run once: they never start resumable.
+            resumable: kernel == Kernel::Render && (start_passes > 1 || !options.one_pass_first),
+            last: start_passes,
+            // The window cancels between passes: it keeps a wait a pass.
+            max_chain: match cancel {
+                Some(_) => 1,
+                None => options.chain_passes.clamp(1, MAX_CHAIN),
+            },
+            budget: options.pass_budget,
+            needed: false,
+            most: 0,
         };
         let dispatch_start = Instant::now();
         let mut next_tile = tiles.iter();
@@ -124,9 +131,7 @@ impl Gpu<'_> {
                             break;
                         };
                         free.pop();
-                        // A tile of this render needed passes: so will this.
-                        let resumable = start_resumable || needed_passes;
-                        (s, TileWork::new(rect, options.pass_budget, resumable))
+                        (s, starts.tile(rect))
                     }
                 };
                 let p = pipelines.get(self, &work, &mut timings)?;
@@ -168,11 +173,11 @@ impl Gpu<'_> {
                 &mut work,
                 slot,
                 (kernel, camera.width),
-                max_chain,
+                starts.max_chain,
                 &mut tally,
                 &report,
             )?;
-            needed_passes |= needs;
+            starts.needed |= needs;
             if !done {
                 again = Some((s, work));
                 continue;
@@ -189,6 +194,7 @@ impl Gpu<'_> {
             tally.rays[0] += work.rays[0];
             tally.rays[1] += work.rays[1];
             tally.done_pixels += u64::from(work.left);
+            starts.most = starts.most.max(work.pass);
             report(&tally);
             free.push(s);
         }
@@ -210,7 +216,8 @@ impl Gpu<'_> {
             lists,
             key.corners,
         );
-        Ok((timings, (kernel == Kernel::Render).then_some(needed_passes)))
+        let needed = starts.passes_needed();
+        Ok((timings, (kernel == Kernel::Render).then_some(needed)))
     }
 
     /// The image-sized readback buffer `job`'s tiles are gathered into,

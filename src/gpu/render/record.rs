@@ -9,7 +9,7 @@ use ash::vk;
 use super::job::{GpuRenderOptions, Job, Packing, TileRect, TileWork, TEXEL_BYTES};
 use super::resources::{Gpu, Slot};
 use crate::gpu::bindings::Lists;
-use crate::gpu::commands::memory_barrier;
+use crate::gpu::commands::{begin, memory_barrier};
 use crate::gpu::error::{GpuError, VkResultExt};
 use crate::gpu::present::FrameTarget;
 use crate::gpu::small_pipeline::SmallPipeline;
@@ -110,10 +110,9 @@ impl Gpu<'_> {
             origin: rect.origin,
             size: rect.size,
             budget: work.budget,
-            first: u32::from(work.pass == 1),
+            first: 0,
             _pad: [0; 2],
         };
-        slot.tile.write(bytemuck::bytes_of(&tile));
         let (groups, texels) = match job {
             Job::Image(_) | Job::Rects => (
                 [
@@ -147,17 +146,12 @@ impl Gpu<'_> {
                 .call("vkResetFences")?;
             for i in 0..chain {
                 let command = slot.commands[i];
-                device
-                    .reset_command_buffer(command, vk::CommandBufferResetFlags::empty())
-                    .call("vkResetCommandBuffer")?;
-                device
-                    .begin_command_buffer(
-                        command,
-                        &vk::CommandBufferBeginInfo::default()
-                            .flags(vk::CommandBufferUsageFlags::ONE_TIME_SUBMIT),
-                    )
-                    .call("vkBeginCommandBuffer")?;
-                self.record_dispatch(slot, i, pipeline, lists, groups);
+                begin(device, command)?;
+                let tile = GpuTile {
+                    first: u32::from(work.pass + i as u32 == 1),
+                    ..tile
+                };
+                self.record_dispatch(slot, (i, tile), pipeline, lists, groups);
                 // Only the last pass's texels are read: a pixel finished in
                 // an earlier one is left as it is by the passes after it.
                 if i + 1 == chain {
@@ -182,13 +176,13 @@ impl Gpu<'_> {
     }
 
     /// Records into the slot's command buffer for its `i`th pass in
-    /// flight: the wait for the passes before it, the status reset, the
-    /// tile's dispatch between timestamps (where the device has them), and
-    /// the copy of its status into the slot's log.
+    /// flight: the wait for the passes before it, the status reset and the
+    /// pass's `tile` uniform, the tile's dispatch between timestamps (where
+    /// the device has them), and the copy of its status into the slot's log.
     fn record_dispatch(
         &self,
         slot: &Slot,
-        i: usize,
+        (i, tile): (usize, GpuTile),
         pipeline: vk::Pipeline,
         lists: Lists,
         groups: [u32; 2],
@@ -206,7 +200,7 @@ impl Gpu<'_> {
         // handle is live.
         unsafe {
             // The pass before it in the queue (this tile's, chained) wrote
-            // the pixel state and read the status.
+            // the pixel state and read the status and the tile.
             memory_barrier(
                 device,
                 command,
@@ -222,17 +216,21 @@ impl Gpu<'_> {
                 ),
             );
             // The status starts each pass at RESET: the counters at 0 and
-            // first_cut at u32::MAX (a fill per word).
+            // first_cut at u32::MAX (a fill per word). The tile is written
+            // here, not by the host: chained passes differ in `first`.
             for (k, &w) in words.iter().enumerate() {
                 device.cmd_fill_buffer(command, slot.status.raw, 4 * k as u64, 4, w);
             }
+            device.cmd_update_buffer(command, slot.tile.raw, 0, bytemuck::bytes_of(&tile));
             memory_barrier(
                 device,
                 command,
                 (transfer, vk::AccessFlags::TRANSFER_WRITE),
                 (
                     compute,
-                    vk::AccessFlags::SHADER_READ | vk::AccessFlags::SHADER_WRITE,
+                    vk::AccessFlags::SHADER_READ
+                        | vk::AccessFlags::SHADER_WRITE
+                        | vk::AccessFlags::UNIFORM_READ,
                 ),
             );
             device.cmd_bind_pipeline(command, vk::PipelineBindPoint::COMPUTE, pipeline);

@@ -406,8 +406,8 @@ impl Gpu<'_> {
             shared,
             &format!("tile {index}"),
             std::mem::size_of::<GpuTile>() as u64,
-            vk::BufferUsageFlags::UNIFORM_BUFFER,
-            MemoryLocation::CpuToGpu,
+            vk::BufferUsageFlags::UNIFORM_BUFFER | vk::BufferUsageFlags::TRANSFER_DST,
+            MemoryLocation::GpuOnly,
         )?;
         // Reset by each pass, and copied after it into the log the host
         // reads: the shader's atomics stay in device memory.

@@ -4,7 +4,7 @@
 
 use std::time::Duration;
 
-use super::job::{TileWork, BUDGET_BACKOFF, RESUMABLE_REDOS};
+use super::job::{TileRect, TileWork, BUDGET_BACKOFF, RESUMABLE_REDOS};
 use super::resources::Slot;
 use crate::gpu::bindings::Lists;
 use crate::gpu::error::GpuError;
@@ -13,6 +13,47 @@ use crate::layout::GpuStatus;
 use crate::timing::{
     Timings, CLOSEST_RAYS, GPU_TIME_NS, PASS_WAITS, READBACK_BYTES, READBACK_READS, SHADOW_RAYS,
 };
+
+/// How a render's tiles start, from what its finished tiles and the
+/// renderer's last render needed.
+pub(super) struct Starts {
+    /// Tiles start resumable (`TileWork::resumable`).
+    pub(super) resumable: bool,
+    /// The most passes a tile of the renderer's last render needed.
+    pub(super) last: u32,
+    /// The most passes queued at once (`GpuRenderOptions::chain_passes`).
+    pub(super) max_chain: u32,
+    pub(super) budget: u32,
+    /// A tile of this render needed passes.
+    pub(super) needed: bool,
+    /// The most passes a finished tile of this render needed (0: none
+    /// finished yet).
+    pub(super) most: u32,
+}
+
+impl Starts {
+    /// A new tile: resumable once a tile of this render needed passes
+    /// (so will this), with as many queued as the most a tile of this
+    /// render or the last needed.
+    pub(super) fn tile(&self, rect: TileRect) -> TileWork {
+        let resumable = self.resumable || self.needed;
+        let chain = match resumable {
+            true => self.most.max(self.last).clamp(1, self.max_chain),
+            false => 1,
+        };
+        TileWork::new(rect, self.budget, resumable, chain)
+    }
+
+    /// What the renderer remembers for its next render: the most passes a
+    /// tile needed (1: none needed more).
+    pub(super) fn passes_needed(&self) -> u32 {
+        if self.needed {
+            self.most.max(2)
+        } else {
+            1
+        }
+    }
+}
 
 /// What the pass loop counts on its way.
 pub(super) struct Tally {
