@@ -174,7 +174,7 @@ impl DriverProfile {
             ("address lists", on(self.address_lists)),
             ("uniform copies", on(self.uniform_copies)),
             ("one-pass first try", on(self.one_pass_first)),
-            ("passes queued a wait", self.chain_passes.to_string()),
+            ("passes per wait", self.chain_passes.to_string()),
             (
                 "auto prefers the CPU reference",
                 on(self.prefer_cpu_reference),

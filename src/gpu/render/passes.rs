@@ -62,8 +62,23 @@ impl Gpu<'_> {
     /// texels, and the texels from one row's start to the next): as each
     /// tile finishes, or all at the end where they are gathered on the
     /// device (`job::gather_bytes`). Returns the most passes a tile needed
-    /// (for the renderer's next start, `Render` only).
+    /// (for the renderer's next start, `Render` only). A render that fails
+    /// leaves no pass in flight (`settle`).
     pub(super) fn run(
+        &self,
+        work: &Work,
+        res: &mut Resources,
+        progress: &(dyn Fn(u64, u64) + Sync),
+        sink: &mut dyn FnMut(TileRect, &[u8], usize),
+    ) -> Result<(Timings, Option<u32>), GpuError> {
+        let result = self.run_passes(work, res, progress, sink);
+        if result.is_err() {
+            self.settle(&mut res.slots, work.options);
+        }
+        result
+    }
+
+    fn run_passes(
         &self,
         work: &Work,
         res: &mut Resources,
@@ -157,8 +172,8 @@ impl Gpu<'_> {
             let Some((s, mut work)) = in_flight.pop_front() else {
                 break;
             };
+            self.wait(&mut res.slots[s], work, options)?;
             let slot = &res.slots[s];
-            self.wait(slot, work, options)?;
             tally.waits += 1;
             if cancelled() {
                 free.push(s);

@@ -170,6 +170,7 @@ impl Gpu<'_> {
                 device
                     .queue_submit(shared.queue, &[submit], slot.fences[i])
                     .map_err(|r| self.fail(r, work, "vkQueueSubmit", 0))?;
+                slot.submitted = i + 1;
             }
         }
         Ok(())
@@ -377,7 +378,7 @@ impl Gpu<'_> {
     /// `options.pass_timeout`.
     pub(super) fn wait(
         &self,
-        slot: &Slot,
+        slot: &mut Slot,
         work: TileWork,
         options: &GpuRenderOptions,
     ) -> Result<(), GpuError> {
@@ -390,7 +391,34 @@ impl Gpu<'_> {
                 .device
                 .wait_for_fences(&slot.fences[..chain], true, timeout)
         }
-        .map_err(|r| self.fail(r, work, "vkWaitForFences", limit.as_secs()))
+        .map_err(|r| self.fail(r, work, "vkWaitForFences", limit.as_secs()))?;
+        slot.submitted = 0;
+        Ok(())
+    }
+
+    /// After a failed render, waits for the passes it left in flight (the
+    /// other slot's, or those queued before a failed submission), so that
+    /// the next render may reset their fences; errors are the failure's
+    /// own, already reported.
+    pub(super) fn settle(&self, slots: &mut [Slot], options: &GpuRenderOptions) {
+        if self.shared.is_poisoned() {
+            return;
+        }
+        for slot in slots.iter_mut().filter(|s| s.submitted > 0) {
+            let limit = options.pass_timeout.saturating_mul(slot.submitted as u32);
+            let timeout = limit.as_nanos().min(u128::from(u64::MAX)) as u64;
+            // SAFETY: these fences were submitted by this renderer.
+            let waited = unsafe {
+                self.shared
+                    .device
+                    .wait_for_fences(&slot.fences[..slot.submitted], true, timeout)
+            };
+            match waited {
+                Ok(()) => slot.submitted = 0,
+                // Not waited for: the device is no longer trusted.
+                Err(_) => self.shared.poison(),
+            }
+        }
     }
 
     pub(super) fn fail(

@@ -143,6 +143,8 @@ pub(super) struct Slot {
     /// (`MAX_CHAIN`).
     pub(super) commands: Vec<vk::CommandBuffer>,
     pub(super) fences: Vec<vk::Fence>,
+    /// Its passes submitted and not yet waited for.
+    pub(super) submitted: usize,
     /// A descriptor set of each layout, in `Lists::ALL` order.
     pub(super) sets: [vk::DescriptorSet; 4],
     /// Its first timestamp in `Pools::queries` (null pool: none); two a
@@ -472,6 +474,7 @@ impl Gpu<'_> {
             ),
             commands,
             fences,
+            submitted: 0,
             sets,
             queries: pools.queries,
             first_query: 2 * MAX_CHAIN * index as u32,
