@@ -407,7 +407,8 @@ fn tiles_gathered_on_the_device_equal_tiles_read_one_by_one() {
 /// the Nth pass submission) ends the run with exit 1 and a message naming
 /// the Vulkan call; the frames finished before it are written whole and
 /// equal a clean run's, no partial file is left; a single render that
-/// fails writes nothing.
+/// fails writes nothing, also where the fault falls among a tile's queued
+/// passes.
 #[test]
 fn a_device_failing_mid_animation_keeps_the_finished_frames() {
     if gpu().is_none() {
@@ -496,4 +497,21 @@ fn a_device_failing_mid_animation_keeps_the_finished_frames() {
         String::from_utf8_lossy(&single.stderr)
     );
     assert!(!dir.path().join("one.png").exists());
+    // A fault among a tile's queued passes: its one-pass try and resumable
+    // redo are submissions 1 and 2, then a chain of two, whose second (the
+    // 4th) fails with the first in flight. The same clean end.
+    let effects = repo_path("scenes/effects/soft_shadows.scene");
+    let chained = std::process::Command::new(env!("CARGO_BIN_EXE_glint"))
+        .arg("render")
+        .arg(&effects)
+        .args(["chained.png", "--backend", "gpu", "--width", "64"])
+        .args(["--height", "48", "--pass-budget", "8"])
+        .env("GLINT_FAULT", "oom@4")
+        .current_dir(dir.path())
+        .output()
+        .expect("run glint");
+    let stderr = String::from_utf8_lossy(&chained.stderr);
+    assert_eq!(chained.status.code(), Some(1), "{stderr}");
+    assert!(stderr.contains("vkQueueSubmit failed"), "{stderr}");
+    assert!(!dir.path().join("chained.png").exists());
 }
