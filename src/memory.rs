@@ -6,9 +6,10 @@
 //! Counted: the f32 image (12 bytes a pixel, tiles are read back into it
 //! directly), its 8-bit copy for encoding (3 bytes a pixel; a CPU render to
 //! 8-bit pixels makes them band by band and counts them alone), and on the GPU
-//! path the packed scene, its staging copy, the tile buffers and, on a device
-//! without memory of its own (lavapipe and other CPU devices), the device
-//! copies too. The parsed scene and its BVH already exist when this is asked
+//! path the packed scene, its staging copy, the tile buffers, the image-sized
+//! buffer the tiles are gathered into (host memory on every device) and, on a
+//! device without memory of its own (lavapipe and other CPU devices), the
+//! device copies too. The parsed scene and its BVH already exist when this is asked
 //! and are not counted.
 
 use std::fmt;
@@ -67,6 +68,12 @@ impl MemoryNeed {
         } else {
             self.parts.push(("tile readback", 2 * texels * 16));
         }
+    }
+
+    /// The image-sized readback buffer a GPU render gathers its tiles into
+    /// (`gpu::gathered_image_bytes`: `bytes`, 0 where there is none).
+    pub fn add_gathered(&mut self, bytes: u64) {
+        self.parts.push(("image readback", bytes));
     }
 
     /// All the parts' bytes together.
@@ -195,6 +202,19 @@ mod tests {
         let need = MemoryNeed::rgb8(1000, 500);
         assert_eq!(need.total(), 500_000 * 3);
         assert_eq!(need.to_string(), "1.4 MiB (8-bit image 1.4 MiB)");
+    }
+
+    /// The gathered image counts as the pixels the file needs, and not at
+    /// all where it is too large to gather (read tile by tile).
+    #[test]
+    fn a_gathered_image_counts_its_packed_pixels() {
+        use crate::gpu::gathered_image_bytes;
+        assert_eq!(gathered_image_bytes(1920, 1080, true), 1920 * 1080 * 3);
+        assert_eq!(gathered_image_bytes(1920, 1080, false), 1920 * 1080 * 12);
+        assert_eq!(gathered_image_bytes(16384, 16384, false), 0);
+        let mut need = MemoryNeed::image(1000, 500);
+        need.add_gathered(gathered_image_bytes(1000, 500, true));
+        assert_eq!(need.total(), 500_000 * (15 + 3));
     }
 
     #[test]

@@ -33,6 +33,7 @@ pub fn run(path: &Path, effects: &EffectArgs, size: [u32; 2]) -> anyhow::Result<
     let tile = glint::gpu::GpuRenderOptions::default().tile_size;
     let texels = glint::gpu::tile_texels(tile, width, height);
     gpu.add_gpu(&GpuScene::pack(&scene, &bvh), texels, true);
+    gpu.add_gathered(glint::gpu::gathered_image_bytes(width, height, false));
     println!("memory      at {width}x{height}: CPU {cpu}");
     println!("            GPU {gpu}");
     match glint::memory::available() {

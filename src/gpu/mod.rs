@@ -34,5 +34,6 @@ pub use context::{
 pub use error::GpuError;
 pub use pipeline::Kernel;
 pub use render::{
-    tile_texels, GpuRenderOptions, GpuRenderer, DEFAULT_PASS_BUDGET, MAX_CHAIN, RESUMABLE_REDOS,
+    gathered_image_bytes, tile_texels, GpuRenderOptions, GpuRenderer, DEFAULT_PASS_BUDGET,
+    MAX_CHAIN, RESUMABLE_REDOS,
 };

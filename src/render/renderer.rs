@@ -495,6 +495,11 @@ impl Renderer {
                     p.camera.height,
                 );
                 need.add_gpu(packed, texels, host_device);
+                if self.options.gpu.gather {
+                    let rgb8 = pixels == PixelFormat::Rgb8;
+                    let [w, h] = [p.camera.width, p.camera.height];
+                    need.add_gathered(crate::gpu::gathered_image_bytes(w, h, rgb8));
+                }
                 need.check(memory::available())?;
                 let options = GpuRenderOptions {
                     pack_rgb8: pixels == PixelFormat::Rgb8,

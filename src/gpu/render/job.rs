@@ -278,6 +278,20 @@ pub(super) fn place_rows<T: Copy>(
 /// 5K) are read tile by tile, into the host's image alone.
 pub(super) const GATHER_MAX: u64 = 256 << 20;
 
+/// Bytes of the image-sized readback buffer a packed render of a `width` x
+/// `height` image gathers its tiles into (`GpuRenderOptions::gather`), as
+/// 8-bit pixels (`rgb8`) or f32 RGB; 0 where it is over `GATHER_MAX` and
+/// read tile by tile instead.
+pub fn gathered_image_bytes(width: u32, height: u32, rgb8: bool) -> u64 {
+    let pack = if rgb8 { Packing::Rgb8 } else { Packing::RgbF32 };
+    let bytes = u64::from(width) * u64::from(height) * pack.bytes();
+    if bytes <= GATHER_MAX {
+        bytes
+    } else {
+        0
+    }
+}
+
 /// The bytes of the image-sized readback buffer a `job` gathers into, or
 /// `None` where its tiles are read one by one: unpacked texels, probes,
 /// `options.gather` off, or an image over `GATHER_MAX` or the device's
@@ -289,9 +303,8 @@ pub(super) fn gather_bytes(
     [width, height]: [u32; 2],
     max_allocation: u64,
 ) -> Option<u64> {
-    let pack = pack?;
-    let bytes = u64::from(width) * u64::from(height) * pack.bytes();
-    let fits = bytes <= GATHER_MAX.min(max_allocation);
+    let bytes = gathered_image_bytes(width, height, pack? == Packing::Rgb8);
+    let fits = bytes > 0 && bytes <= max_allocation;
     (options.gather && fits && matches!(job, Job::Image(_) | Job::Rects)).then_some(bytes)
 }
 

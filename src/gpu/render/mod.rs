@@ -36,8 +36,11 @@ use std::sync::atomic::{AtomicBool, AtomicU32, Ordering};
 use std::sync::{Arc, Mutex};
 use std::time::Duration;
 
+pub use job::{
+    gathered_image_bytes, tile_texels, GpuRenderOptions, DEFAULT_PASS_BUDGET, MAX_CHAIN,
+    RESUMABLE_REDOS,
+};
 use job::{place_rows, place_tile, tile_edge, tiles, Job, TileRect};
-pub use job::{tile_texels, GpuRenderOptions, DEFAULT_PASS_BUDGET, MAX_CHAIN, RESUMABLE_REDOS};
 use passes::Work;
 use plan::{capped, key, plan_lists, scene_uploads};
 use resources::{Gpu, Resources};
