@@ -184,6 +184,10 @@ pub(super) enum Job {
     Pixel([u32; 2]),
 }
 
+/// Where a run's finished texels go: the rect, its texels, and the texels
+/// from one row's start to the next.
+pub(super) type TileSink<'a> = dyn FnMut(TileRect, &[u8], usize) + 'a;
+
 #[derive(Clone, Copy, Debug)]
 pub(super) struct TileRect {
     pub(super) origin: [u32; 2],

@@ -40,7 +40,7 @@ pub use job::{
     gathered_image_bytes, tile_texels, GpuRenderOptions, DEFAULT_PASS_BUDGET, MAX_CHAIN,
     RESUMABLE_REDOS,
 };
-use job::{place_rows, place_tile, tile_edge, tiles, Job, TileRect};
+use job::{place_rows, place_tile, tile_edge, tiles, Job, TileRect, TileSink};
 use passes::Work;
 use plan::{capped, key, plan_lists, scene_uploads};
 use resources::{Gpu, Resources};
@@ -118,7 +118,7 @@ impl GpuRenderer {
         &self,
         work: Work,
         progress: &(dyn Fn(u64, u64) + Sync),
-        sink: &mut dyn FnMut(TileRect, &[u8], usize),
+        sink: &mut TileSink,
     ) -> Result<Timings, GpuError> {
         let mut guard = self.resources.lock().unwrap_or_else(|e| e.into_inner());
         if guard.is_none() {
@@ -135,7 +135,11 @@ impl GpuRenderer {
             }),
             ..work
         };
-        let (timings, passes_needed) = self.gpu().run(&work, res, progress, sink)?;
+        let result = self.gpu().run(&work, res, progress, sink);
+        if result.is_err() {
+            self.gpu().settle(&mut res.slots, work.options);
+        }
+        let (timings, passes_needed) = result?;
         if let Some(needed) = passes_needed {
             self.passes_needed.store(needed, Ordering::Relaxed);
         }

@@ -18,7 +18,7 @@ use ash::vk;
 
 use super::job::{
     gather_bytes, tile_edge, tile_texels, tiles, GpuRenderOptions, Job, Packing, TileRect,
-    TileWork, B_FRAME, B_OUTPUT, B_STATE, MAX_CHAIN, PATH_MAX_LIGHTS, SLOTS, TEXEL_BYTES,
+    TileSink, TileWork, B_FRAME, B_OUTPUT, B_STATE, MAX_CHAIN, PATH_MAX_LIGHTS, SLOTS, TEXEL_BYTES,
 };
 use super::plan::{capped, check_limits, key, scene_uploads, upload};
 use super::record::{Copies, Gather};
@@ -62,28 +62,14 @@ impl Gpu<'_> {
     /// texels, and the texels from one row's start to the next): as each
     /// tile finishes, or all at the end where they are gathered on the
     /// device (`job::gather_bytes`). Returns the most passes a tile needed
-    /// (for the renderer's next start, `Render` only). A render that fails
-    /// leaves no pass in flight (`settle`).
+    /// (for the renderer's next start, `Render` only). A failed run can
+    /// leave passes in flight: `settle` waits for them.
     pub(super) fn run(
         &self,
         work: &Work,
         res: &mut Resources,
         progress: &(dyn Fn(u64, u64) + Sync),
-        sink: &mut dyn FnMut(TileRect, &[u8], usize),
-    ) -> Result<(Timings, Option<u32>), GpuError> {
-        let result = self.run_passes(work, res, progress, sink);
-        if result.is_err() {
-            self.settle(&mut res.slots, work.options);
-        }
-        result
-    }
-
-    fn run_passes(
-        &self,
-        work: &Work,
-        res: &mut Resources,
-        progress: &(dyn Fn(u64, u64) + Sync),
-        sink: &mut dyn FnMut(TileRect, &[u8], usize),
+        sink: &mut TileSink,
     ) -> Result<(Timings, Option<u32>), GpuError> {
         let Work {
             scene,
@@ -380,22 +366,12 @@ impl TilePipelines {
 
 /// Hands a finished tile's `bytes` of texels, as its slot read them back,
 /// to `sink`.
-fn read_tile(
-    slot: &Slot,
-    rect: TileRect,
-    bytes: u64,
-    sink: &mut dyn FnMut(TileRect, &[u8], usize),
-    tally: &mut Tally,
-) {
-    let start = Instant::now();
-    sink(
-        rect,
-        &slot.readback.get().mapped()[..bytes as usize],
-        rect.size[0] as usize,
-    );
-    tally.readback += start.elapsed();
-    tally.readback_bytes += bytes;
-    tally.reads += 1;
+fn read_tile(slot: &Slot, rect: TileRect, bytes: u64, sink: &mut TileSink, tally: &mut Tally) {
+    tally.read(|| {
+        let texels = &slot.readback.get().mapped()[..bytes as usize];
+        sink(rect, texels, rect.size[0] as usize);
+        bytes
+    });
 }
 
 /// Hands the gathered image to `sink`: whole for a whole image, else each
@@ -405,30 +381,30 @@ fn read_gathered(
     res: &Resources,
     (job, [width, height], texel_bytes): (Job, [u32; 2], u64),
     tiles: &[TileRect],
-    sink: &mut dyn FnMut(TileRect, &[u8], usize),
+    sink: &mut TileSink,
     tally: &mut Tally,
 ) {
-    let start = Instant::now();
-    let image = u64::from(width) * u64::from(height) * texel_bytes;
-    let mapped = &res.gathered.get().mapped()[..image as usize];
-    let stride = width as usize;
-    if matches!(job, Job::Image(_)) {
-        let whole = TileRect {
-            origin: [0, 0],
-            size: [width, height],
-        };
-        sink(whole, mapped, stride);
-        tally.readback_bytes += image;
-    } else {
+    tally.read(|| {
+        let image = u64::from(width) * u64::from(height) * texel_bytes;
+        let mapped = &res.gathered.get().mapped()[..image as usize];
+        let stride = width as usize;
+        if matches!(job, Job::Image(_)) {
+            let whole = TileRect {
+                origin: [0, 0],
+                size: [width, height],
+            };
+            sink(whole, mapped, stride);
+            return image;
+        }
+        let mut read = 0;
         for &rect in tiles {
             let [x, y] = rect.origin.map(u64::from);
             let at = ((y * u64::from(width) + x) * texel_bytes) as usize;
             sink(rect, &mapped[at..], stride);
-            tally.readback_bytes += u64::from(rect.size[0] * rect.size[1]) * texel_bytes;
+            read += u64::from(rect.size[0] * rect.size[1]) * texel_bytes;
         }
-    }
-    tally.readback += start.elapsed();
-    tally.reads += 1;
+        read
+    });
 }
 
 /// What a job runs: its kernel, its tiles, and the texels of output a tile

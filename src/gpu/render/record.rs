@@ -106,13 +106,6 @@ impl Gpu<'_> {
         let shared = &self.shared;
         let device = &shared.device;
         let rect = work.rect;
-        let tile = GpuTile {
-            origin: rect.origin,
-            size: rect.size,
-            budget: work.budget,
-            first: 0,
-            _pad: [0; 2],
-        };
         let (groups, texels) = match job {
             Job::Image(_) | Job::Rects => (
                 [
@@ -148,8 +141,11 @@ impl Gpu<'_> {
                 let command = slot.commands[i];
                 begin(device, command)?;
                 let tile = GpuTile {
+                    origin: rect.origin,
+                    size: rect.size,
+                    budget: work.budget,
                     first: u32::from(work.pass + i as u32 == 1),
-                    ..tile
+                    _pad: [0; 2],
                 };
                 self.record_dispatch(slot, (i, tile), pipeline, lists, groups);
                 // Only the last pass's texels are read: a pixel finished in
@@ -382,18 +378,8 @@ impl Gpu<'_> {
         work: TileWork,
         options: &GpuRenderOptions,
     ) -> Result<(), GpuError> {
-        let chain = work.chain as usize;
-        let limit = options.pass_timeout.saturating_mul(work.chain);
-        let timeout = limit.as_nanos().min(u128::from(u64::MAX)) as u64;
-        // SAFETY: the fences belong to this device and were submitted.
-        unsafe {
-            self.shared
-                .device
-                .wait_for_fences(&slot.fences[..chain], true, timeout)
-        }
-        .map_err(|r| self.fail(r, work, "vkWaitForFences", limit.as_secs()))?;
-        slot.submitted = 0;
-        Ok(())
+        let (limit, waited) = self.wait_submitted(slot, options);
+        waited.map_err(|r| self.fail(r, work, "vkWaitForFences", limit.as_secs()))
     }
 
     /// After a failed render, waits for the passes it left in flight (the
@@ -405,20 +391,33 @@ impl Gpu<'_> {
             return;
         }
         for slot in slots.iter_mut().filter(|s| s.submitted > 0) {
-            let limit = options.pass_timeout.saturating_mul(slot.submitted as u32);
-            let timeout = limit.as_nanos().min(u128::from(u64::MAX)) as u64;
-            // SAFETY: these fences were submitted by this renderer.
-            let waited = unsafe {
-                self.shared
-                    .device
-                    .wait_for_fences(&slot.fences[..slot.submitted], true, timeout)
-            };
-            match waited {
-                Ok(()) => slot.submitted = 0,
+            if self.wait_submitted(slot, options).1.is_err() {
                 // Not waited for: the device is no longer trusted.
-                Err(_) => self.shared.poison(),
+                self.shared.poison();
             }
         }
+    }
+
+    /// Waits for the slot's submitted passes, `options.pass_timeout` each:
+    /// the time allowed, and the wait's result.
+    fn wait_submitted(
+        &self,
+        slot: &mut Slot,
+        options: &GpuRenderOptions,
+    ) -> (Duration, Result<(), vk::Result>) {
+        let n = slot.submitted;
+        let limit = options.pass_timeout.saturating_mul(n as u32);
+        let timeout = limit.as_nanos().min(u128::from(u64::MAX)) as u64;
+        // SAFETY: the fences belong to this device and were submitted.
+        let waited = unsafe {
+            self.shared
+                .device
+                .wait_for_fences(&slot.fences[..n], true, timeout)
+        };
+        if waited.is_ok() {
+            slot.submitted = 0;
+        }
+        (limit, waited)
     }
 
     pub(super) fn fail(

@@ -2,7 +2,7 @@
 //! says whether a tile is done, goes on, or starts again with less work a
 //! pass; and what the loop counts on its way, for `-v` and `--stats`.
 
-use std::time::Duration;
+use std::time::{Duration, Instant};
 
 use super::job::{TileRect, TileWork, BUDGET_BACKOFF, RESUMABLE_REDOS};
 use super::resources::Slot;
@@ -92,6 +92,15 @@ impl Default for Tally {
 }
 
 impl Tally {
+    /// One read of finished texels by the host: `read` returns the bytes
+    /// it read, and its time goes to `readback`.
+    pub(super) fn read(&mut self, read: impl FnOnce() -> u64) {
+        let start = Instant::now();
+        self.readback_bytes += read();
+        self.readback += start.elapsed();
+        self.reads += 1;
+    }
+
     /// The loop's phases and counts: `dispatch` is the loop's time less
     /// the readback's; rays where `rays_counted`.
     pub(super) fn report(
