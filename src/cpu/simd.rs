@@ -6,7 +6,39 @@
 
 use glam::{Vec3, Vec4};
 
-use crate::bvh::wide::{LeafBlock, Node4};
+use crate::bvh::wide::{LeafBlock, Node4, WideBvh};
+
+/// Starts loading what will be read soon: every cache line `items` (side
+/// by side in memory) touch, with a counted loop over the lines (a
+/// `step_by` per item took a twentieth of the traversal's instructions on
+/// the 240k grid, by cachegrind).
+#[inline(always)]
+pub fn prefetch<T>(items: &[T]) {
+    #[cfg(target_arch = "x86_64")]
+    {
+        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
+        let range = items.as_ptr_range();
+        // From the line holding the first byte to the one holding the
+        // last: an item need not start on a line.
+        let mut line = range.start as usize & !63;
+        while line < range.end as usize {
+            // SAFETY: prefetching has no effect on memory, and never faults.
+            unsafe { _mm_prefetch(line as *const i8, _MM_HINT_T0) };
+            line += 64;
+        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    let _ = items;
+}
+
+/// Starts loading the node in `node`'s lane `lane` (a node child) and its
+/// leaf blocks, for a walk that will open it soon: the next node then
+/// arrives while this one's leaves are tested, and its leaves with it.
+#[inline(always)]
+pub fn prefetch_child(tree: &WideBvh, node: &Node4, lane: usize) {
+    prefetch(std::slice::from_ref(&tree.nodes[node.child[lane] as usize]));
+    prefetch(&tree.leaves[node.leaf_run(lane)]);
+}
 
 /// The watertight test (`trace::hit_triangle`) on a block's triangles, one
 /// per SIMD lane, operation for operation as the scalar one, so each lane

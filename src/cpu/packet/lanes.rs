@@ -254,29 +254,6 @@ pub(super) struct Query<'a> {
     pub(super) t_max: f32,
 }
 
-/// Starts loading what will be read soon: every cache line `items` (side
-/// by side in memory) touch, with a counted loop over the lines (a
-/// `step_by` per item took a twentieth of the traversal's instructions on
-/// the 240k grid, by cachegrind).
-#[inline(always)]
-pub(super) fn prefetch<T>(items: &[T]) {
-    #[cfg(target_arch = "x86_64")]
-    {
-        use std::arch::x86_64::{_mm_prefetch, _MM_HINT_T0};
-        let range = items.as_ptr_range();
-        // From the line holding the first byte to the one holding the
-        // last: an item need not start on a line.
-        let mut line = range.start as usize & !63;
-        while line < range.end as usize {
-            // SAFETY: prefetching has no effect on memory, and never faults.
-            unsafe { _mm_prefetch(line as *const i8, _MM_HINT_T0) };
-            line += 64;
-        }
-    }
-    #[cfg(not(target_arch = "x86_64"))]
-    let _ = items;
-}
-
 /// Three components of one vector per ray.
 pub(super) type V3s = [Lanes; 3];
 

@@ -15,6 +15,7 @@
 //! register's width.
 
 use super::lanes::{lane, set_lane, Lanes, V3s, WIDTH, ZEROS};
+use crate::cpu::simd::prefetch;
 use crate::cpu::trace::{pow_c, CpuScene, Hit, SurfacePoint};
 use glam::Vec3;
 
@@ -115,6 +116,11 @@ fn dot(a: [f32; 3], b: [f32; 3]) -> f32 {
     a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 }
 
+/// Bytes of triangle corners and shading above which `triangle_points`
+/// prefetches its hits' before reading them: 1 MiB, a core's L2 on the
+/// CPUs measured (AMD Zen 4 and 5), below which they are likely cached.
+const PREFETCH_ABOVE: usize = 1 << 20;
+
 /// The surface points of the triangle hits in `lanes` (each the robust
 /// method's `surface_point`, nothing moving), every lane of `points`
 /// written: the others from whatever `c` held there, for the caller to
@@ -128,6 +134,23 @@ pub(super) fn triangle_points(
     c: &mut Corners,
     points: &mut Points,
 ) {
+    // Every hit's corners and shading asked for at once before any is
+    // read: on a large mesh each is a cache miss, and the gather loop
+    // below, waiting on them one lane at a time, was half of the packets'
+    // shading (perf, 2M grid: the render 2-4% faster). Where both lists fit
+    // a core's L2 (`table`'s 182 triangles) the prefetches only cost (1.5%).
+    let large = std::mem::size_of_val(scene.triangles) + std::mem::size_of_val(scene.shading)
+        > PREFETCH_ABOVE;
+    let mut each = if large { lanes } else { 0 };
+    while each != 0 {
+        let i = each.trailing_zeros() as usize;
+        each &= each - 1;
+        let index = hits[i].prim as usize;
+        if let (Some(tri), Some(shading)) = (scene.triangles.get(index), scene.shading.get(index)) {
+            prefetch(std::slice::from_ref(tri));
+            prefetch(std::slice::from_ref(shading));
+        }
+    }
     let mut each = lanes;
     while each != 0 {
         let i = each.trailing_zeros() as usize;

@@ -8,6 +8,7 @@ use super::avx512::children_avx512;
 use super::lanes::*;
 use super::sse::children_sse;
 use crate::bvh::wide;
+use crate::cpu::simd::prefetch_child;
 use crate::cpu::trace::{hit_leaf, hit_triangle, CpuScene, Hit, Ray, NO_HIT};
 use crate::cpu::Real;
 use crate::layout::SPHERE_BIT;
@@ -221,8 +222,7 @@ pub(super) fn traverse_with<const SIMD: u8, const ANY_HIT: bool>(
                 // Indexed with a bounds check: `wide::STACK` bounds the depth.
                 stack[len] = std::mem::MaybeUninit::new((child, hits[lane], nearest[lane]));
                 len += 1;
-                prefetch(std::slice::from_ref(&scene.wide.nodes[child as usize]));
-                prefetch(&scene.wide.leaves[node.leaf_run(lane)]);
+                prefetch_child(scene.wide, node, lane);
             }
         }
         // Leaves are tested as they come, nearest first.

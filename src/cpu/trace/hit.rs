@@ -4,6 +4,7 @@
 
 use crate::bvh::wide::{self};
 use crate::cpu::real::Real;
+use crate::cpu::simd::prefetch_child;
 use crate::layout::SPHERE_BIT;
 use crate::methods::Methods;
 
@@ -501,12 +502,25 @@ fn traverse_from<R: Real>(
                 continue;
             }
             let mut i = n;
-            while i > 0 && t[lanes[i - 1]] < t[lane] {
+            // A blocker blocks whatever the order it is met in, so an
+            // any-hit ray takes the lanes as they come: sorting cost it
+            // time and found no blocker sooner (the packets' walk measured
+            // nearest-first 5% slower on the 2M grid's shadow rays).
+            let before = |a: usize| if any_hit { a < lane } else { t[a] < t[lane] };
+            while i > 0 && before(lanes[i - 1]) {
                 lanes[i] = lanes[i - 1];
                 i -= 1;
             }
             lanes[i] = lane;
             n += 1;
+        }
+        // The child nodes, and their leaf blocks, start loading before this
+        // node's leaves are tested, as in the packets' walk (2M grid: the
+        // render 2-3% faster, a fifth of it being rays handed off alone).
+        for &lane in &lanes[..n] {
+            if node.child[lane] & wide::LEAF == 0 {
+                prefetch_child(scene.wide, node, lane);
+            }
         }
         // Leaves are tested as they come, nearest first; nodes are stacked.
         for &lane in lanes[..n].iter().rev() {
