@@ -211,14 +211,14 @@ macro_rules! crossing {
     }};
 }
 
-/// The new hits of octet `g`'s rays in `found`: lane i's t, b1 and b2 at
-/// `out[..][i]` and its primitive `prim(i)`. Returns `found` as the
-/// packet's ray bits.
+/// The new hits of the `N` rays from ray `N * g` in `found` (an octet's
+/// or a sixteen's): lane i's t, b1 and b2 at `out[..][i]` and its
+/// primitive `prim(i)`. Returns `found` as the packet's ray bits.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-fn keep_hits(
+pub(super) fn keep_hits<const N: usize>(
     (g, found): (usize, u32),
-    out: &[[f32; 8]; 3],
+    out: &[[f32; N]; 3],
     prim: impl Fn(usize) -> u32,
     best: &mut [Hit<f32>; WIDTH],
     best_t: &mut Lanes,
@@ -227,7 +227,7 @@ fn keep_hits(
     while each != 0 {
         let i = each.trailing_zeros() as usize;
         each &= each - 1;
-        let r = 8 * g + i;
+        let r = N * g + i;
         best[r] = Hit {
             t: out[0][i],
             prim: prim(i),
@@ -236,7 +236,7 @@ fn keep_hits(
         };
         best_t.0[r] = out[0][i];
     }
-    found << (8 * g)
+    found << (N * g)
 }
 
 /// One triangle (`tri`, primitive `prim`) against the rays of octet `g`

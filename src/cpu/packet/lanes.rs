@@ -129,6 +129,24 @@ impl Soa {
         }
     }
 
+    /// `take_octets` sixteen rays at a time: `f(sixteen, axis order, its
+    /// rays)` for each pair of octets that share an axis order and would
+    /// each be taken as an octet, taken out of `rays`.
+    #[inline(always)]
+    pub(super) fn take_sixteens(&self, rays: &mut u32, mut f: impl FnMut(usize, [usize; 3], u32)) {
+        for h in 0..WIDTH / 16 {
+            let (Some(a), Some(b)) = (self.k[2 * h], self.k[2 * h + 1]) else {
+                continue;
+            };
+            let m16 = *rays >> (16 * h) & 0xffff;
+            let full = |m: u32| m.count_ones() >= OCTET_MIN_RAYS;
+            if a == b && full(m16 & 255) && full(m16 >> 8) {
+                *rays &= !(m16 << (16 * h));
+                f(h, a, m16);
+            }
+        }
+    }
+
     /// Ray `r` whole, for the tests a ray takes alone (made only for
     /// those: building all of a packet's rays was 7% of `table`'s
     /// instructions).

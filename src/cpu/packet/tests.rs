@@ -260,8 +260,8 @@ fn sphere_rays_match_the_scalar_test() {
     assert!(hits > 3000 && misses > 1000, "{hits} hits, {misses} misses");
 }
 
-/// The octet triangle test gives each ray `wide::hit_block_f32`'s
-/// answer to the bit (which triangle, t, barycentrics), over blocks
+/// The octet triangle test (and the sixteen-ray one, where the CPU has
+/// AVX-512F) gives each ray `wide::hit_block_f32`'s answer to the bit (which triangle, t, barycentrics), over blocks
 /// with empty lanes, degenerate and edge-sharing triangles, rays on
 /// every axis order and limits that cut hits off; and each of the
 /// block's triangles alone (`hit_triangle_octet`) gives each ray
@@ -274,7 +274,7 @@ fn octet_triangle_test_matches_the_block_test() {
         return;
     }
     let mut next = uniform(41);
-    let (mut hits, mut misses, mut octets) = (0, 0, 0);
+    let (mut hits, mut misses, mut octets, mut sixteens) = (0, 0, 0, 0);
     for b in 0..3000 {
         let mut corners = [[Vec3::ZERO; 3]; 4];
         for j in 0..4 {
@@ -321,6 +321,46 @@ fn octet_triangle_test_matches_the_block_test() {
                 next().abs() * 3.0
             }
         });
+        // Sixteen rays a register where the CPU has AVX-512F: the same
+        // answers, for octet pairs that share an axis order.
+        for h in 0..WIDTH / 16 {
+            let (Some(k), Some(k2)) = (soa.k[2 * h], soa.k[2 * h + 1]) else {
+                continue;
+            };
+            if k != k2 || !std::arch::is_x86_feature_detected!("avx512f") {
+                continue;
+            }
+            sixteens += 1;
+            let m16 = (next().to_bits() >> 3 | 0x1001) & 0xffff;
+            let (mut best, mut best_t) = no_hits(&limit);
+            // SAFETY: the CPU has AVX-512F, checked just above.
+            let found =
+                unsafe { hit_block_sixteen(&block, &soa, k, h, m16, &mut best, &mut best_t) };
+            for i in 0..16 {
+                let r = 16 * h + i;
+                let want = (m16 & 1 << i != 0).then(|| {
+                    let ray = &rays[r];
+                    crate::cpu::simd::hit_block_f32(ray.origin, ray.k, ray.shear, &block, limit[r])
+                });
+                let want = want.flatten();
+                assert_eq!(
+                    found >> r & 1 == 1,
+                    want.is_some(),
+                    "block {b} ray {r} (16)"
+                );
+                let (prim, t, b1, b2) = match want {
+                    Some((j, t, b1, b2)) => (block.prims[j], t, b1, b2),
+                    None => (NO_HIT, limit[r], 0.0, 0.0),
+                };
+                let hit = best[r];
+                let got = (
+                    hit.prim,
+                    [hit.t, hit.b1, hit.b2, best_t.0[r]].map(f32::to_bits),
+                );
+                let expect = (prim, [t, b1, b2, t].map(f32::to_bits));
+                assert_eq!(got, expect, "block {b} ray {r} (16)");
+            }
+        }
         for (g, k) in soa.k.iter().enumerate() {
             let Some(k) = *k else { continue };
             octets += 1;
@@ -389,6 +429,11 @@ fn octet_triangle_test_matches_the_block_test() {
         hits > 20_000 && misses > 20_000 && octets > 8_000,
         "{hits} hits, {misses} misses, {octets} octets"
     );
+    if std::arch::is_x86_feature_detected!("avx512f") {
+        assert!(sixteens > 2_000, "{sixteens} sixteens");
+    } else {
+        skipped("octet_triangle_test_matches_the_block_test: this CPU has no AVX-512F, so the sixteen-ray test did not run");
+    }
 }
 
 /// Rays that have found nothing before their limits `limit`.

@@ -4,7 +4,7 @@
 #[cfg(target_arch = "x86_64")]
 use super::avx2::{children_avx2, hit_block_octet, hit_triangle_octet};
 #[cfg(target_arch = "x86_64")]
-use super::avx512::children_avx512;
+use super::avx512::{children_avx512, hit_block_sixteen};
 use super::lanes::*;
 use super::sse::children_sse;
 use crate::bvh::wide;
@@ -353,6 +353,17 @@ fn test_leaf<const SIMD: u8, const ANY_HIT: bool>(
         #[cfg(target_arch = "x86_64")]
         if SIMD >= AVX2 {
             let soa = p.soa;
+            if SIMD == AVX512 {
+                soa.take_sixteens(&mut rays_in, |h, k, m16| {
+                    // SAFETY: SIMD is AVX512 only in `traverse_avx512`,
+                    // which runs only where the CPU has AVX-512F.
+                    let found =
+                        unsafe { hit_block_sixteen(leaf, soa, k, h, m16, p.best, p.best_t) };
+                    if ANY_HIT {
+                        *p.live &= !found;
+                    }
+                });
+            }
             soa.take_octets(&mut rays_in, |g, k, m8| {
                 // SAFETY: SIMD is AVX2 or more only in
                 // `traverse_avx2` and `traverse_avx512`, which run
