@@ -321,46 +321,7 @@ fn octet_triangle_test_matches_the_block_test() {
                 next().abs() * 3.0
             }
         });
-        // Sixteen rays a register where the CPU has AVX-512F: the same
-        // answers, for octet pairs that share an axis order.
-        for h in 0..WIDTH / 16 {
-            let (Some(k), Some(k2)) = (soa.k[2 * h], soa.k[2 * h + 1]) else {
-                continue;
-            };
-            if k != k2 || !std::arch::is_x86_feature_detected!("avx512f") {
-                continue;
-            }
-            sixteens += 1;
-            let m16 = (next().to_bits() >> 3 | 0x1001) & 0xffff;
-            let (mut best, mut best_t) = no_hits(&limit);
-            // SAFETY: the CPU has AVX-512F, checked just above.
-            let found =
-                unsafe { hit_block_sixteen(&block, &soa, k, h, m16, &mut best, &mut best_t) };
-            for i in 0..16 {
-                let r = 16 * h + i;
-                let want = (m16 & 1 << i != 0).then(|| {
-                    let ray = &rays[r];
-                    crate::cpu::simd::hit_block_f32(ray.origin, ray.k, ray.shear, &block, limit[r])
-                });
-                let want = want.flatten();
-                assert_eq!(
-                    found >> r & 1 == 1,
-                    want.is_some(),
-                    "block {b} ray {r} (16)"
-                );
-                let (prim, t, b1, b2) = match want {
-                    Some((j, t, b1, b2)) => (block.prims[j], t, b1, b2),
-                    None => (NO_HIT, limit[r], 0.0, 0.0),
-                };
-                let hit = best[r];
-                let got = (
-                    hit.prim,
-                    [hit.t, hit.b1, hit.b2, best_t.0[r]].map(f32::to_bits),
-                );
-                let expect = (prim, [t, b1, b2, t].map(f32::to_bits));
-                assert_eq!(got, expect, "block {b} ray {r} (16)");
-            }
-        }
+        sixteens += sixteens_match_the_block_test(b, &block, &soa, &rays, &limit, &mut next);
         for (g, k) in soa.k.iter().enumerate() {
             let Some(k) = *k else { continue };
             octets += 1;
@@ -434,6 +395,61 @@ fn octet_triangle_test_matches_the_block_test() {
     } else {
         skipped("octet_triangle_test_matches_the_block_test: this CPU has no AVX-512F, so the sixteen-ray test did not run");
     }
+}
+
+/// `octet_triangle_test_matches_the_block_test`'s check of the
+/// sixteen-ray test where the CPU has AVX-512F: for each sixteen whose
+/// octets share an axis order, each ray in a random mask gets
+/// `hit_block_f32`'s answer to the bit. Returns how many it checked.
+#[cfg(target_arch = "x86_64")]
+fn sixteens_match_the_block_test(
+    b: usize,
+    block: &wide::LeafBlock,
+    soa: &Soa,
+    rays: &[Ray<f32>; WIDTH],
+    limit: &[f32; WIDTH],
+    next: &mut impl FnMut() -> f32,
+) -> u32 {
+    let mut sixteens = 0;
+    for h in 0..WIDTH / 16 {
+        let (Some(k), Some(k2)) = (soa.k[2 * h], soa.k[2 * h + 1]) else {
+            continue;
+        };
+        if k != k2 || !std::arch::is_x86_feature_detected!("avx512f") {
+            continue;
+        }
+        sixteens += 1;
+        let m16 = (next().to_bits() >> 3 | 0x1001) & 0xffff;
+        let (mut best, mut best_t) = no_hits(limit);
+        // SAFETY: the CPU has AVX-512F, checked just above.
+        let found = unsafe { hit_block_sixteen(block, soa, k, h, m16, &mut best, &mut best_t) };
+        for i in 0..16 {
+            let r = 16 * h + i;
+            let ray = &rays[r];
+            let want = (m16 & 1 << i != 0)
+                .then(|| {
+                    crate::cpu::simd::hit_block_f32(ray.origin, ray.k, ray.shear, block, limit[r])
+                })
+                .flatten();
+            assert_eq!(
+                found >> r & 1 == 1,
+                want.is_some(),
+                "block {b} ray {r} (16)"
+            );
+            let (prim, t, b1, b2) = match want {
+                Some((j, t, b1, b2)) => (block.prims[j], t, b1, b2),
+                None => (NO_HIT, limit[r], 0.0, 0.0),
+            };
+            let hit = best[r];
+            let got = (
+                hit.prim,
+                [hit.t, hit.b1, hit.b2, best_t.0[r]].map(f32::to_bits),
+            );
+            let expect = (prim, [t, b1, b2, t].map(f32::to_bits));
+            assert_eq!(got, expect, "block {b} ray {r} (16)");
+        }
+    }
+    sixteens
 }
 
 /// Rays that have found nothing before their limits `limit`.
