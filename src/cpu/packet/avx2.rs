@@ -154,61 +154,76 @@ impl Octet {
     }
 }
 
-/// The watertight test of one triangle against an octet's rays (`Octet`)
-/// and their limits `t_max`, `at(c, a)` giving corner `c` on the rays'
-/// axis `a` (kx, ky, kz): per ray `trace::hit_triangle`'s operations in
-/// its order on the same values (ordered compares as `cmplt` and `cmpgt`,
-/// unordered as `cmpne`). Gives the rays it hits, the scaled t, the
-/// determinant and the unscaled second and third barycentrics (t is
-/// `t_scaled / det`). A macro, as `box_entry_exit`, so that it expands
-/// inside its caller's `target_feature`.
+/// The watertight test of one triangle against a register of rays, with
+/// origins `o` and shears `s` along the rays' axes (kx, ky, kz), and
+/// their limits `t_max`, `at(c, a)` giving corner `c` on axis `a`: per ray
+/// `trace::hit_triangle`'s operations in its order on the same values.
+/// The operations come from the caller, for its width: `set1`, `sub`,
+/// `mul`, `add` and `zero` on floats; `lt`, `gt` (ordered) and `neq`
+/// (unordered) compares; `or`, `and` and `andnot` (not the first, and the
+/// second) on their answers, vectors for AVX2, masks for AVX-512. Gives
+/// the rays it hits, the scaled t, the determinant and the unscaled second
+/// and third barycentrics (t is `t_scaled / det`). A macro, as
+/// `box_entry_exit`, so that it expands inside its caller's
+/// `target_feature`; one macro, so that every width runs the same
+/// arithmetic.
 #[cfg(target_arch = "x86_64")]
 macro_rules! crossing {
-    ($rays:expr, $at:expr, $t_max:expr) => {{
-        let [ox, oy, oz] = $rays.o;
-        let [s0, s1, s2] = $rays.s;
-        let zero = _mm256_setzero_ps();
-        let p = |corner: usize, axis: usize| _mm256_set1_ps($at(corner, axis));
-        let a_z = _mm256_sub_ps(p(0, 2), oz);
-        let b_z = _mm256_sub_ps(p(1, 2), oz);
-        let c_z = _mm256_sub_ps(p(2, 2), oz);
-        let ax = _mm256_sub_ps(_mm256_sub_ps(p(0, 0), ox), _mm256_mul_ps(s0, a_z));
-        let ay = _mm256_sub_ps(_mm256_sub_ps(p(0, 1), oy), _mm256_mul_ps(s1, a_z));
-        let bx = _mm256_sub_ps(_mm256_sub_ps(p(1, 0), ox), _mm256_mul_ps(s0, b_z));
-        let by = _mm256_sub_ps(_mm256_sub_ps(p(1, 1), oy), _mm256_mul_ps(s1, b_z));
-        let cx = _mm256_sub_ps(_mm256_sub_ps(p(2, 0), ox), _mm256_mul_ps(s0, c_z));
-        let cy = _mm256_sub_ps(_mm256_sub_ps(p(2, 1), oy), _mm256_mul_ps(s1, c_z));
-        let u = _mm256_sub_ps(_mm256_mul_ps(cx, by), _mm256_mul_ps(cy, bx));
-        let v = _mm256_sub_ps(_mm256_mul_ps(ax, cy), _mm256_mul_ps(ay, cx));
-        let w = _mm256_sub_ps(_mm256_mul_ps(bx, ay), _mm256_mul_ps(by, ax));
-        let lt = |a, b| _mm256_cmp_ps::<_CMP_LT_OS>(a, b);
-        let gt = |a, b| _mm256_cmp_ps::<_CMP_GT_OS>(a, b);
-        let or = |a, b| _mm256_or_ps(a, b);
-        let and = |a, b| _mm256_and_ps(a, b);
+    ($o:expr, $s:expr, $at:expr, $t_max:expr;
+     $set1:expr, $sub:expr, $mul:expr, $add:expr, $zero:expr,
+     $lt:expr, $gt:expr, $neq:expr, $or:expr, $and:expr, $andnot:expr) => {{
+        let [ox, oy, oz] = $o;
+        let [s0, s1, s2] = $s;
+        let (sub, mul, add, zero) = ($sub, $mul, $add, $zero);
+        let (lt, gt, or, and, andnot) = ($lt, $gt, $or, $and, $andnot);
+        let p = |corner: usize, axis: usize| $set1($at(corner, axis));
+        let a_z = sub(p(0, 2), oz);
+        let b_z = sub(p(1, 2), oz);
+        let c_z = sub(p(2, 2), oz);
+        let ax = sub(sub(p(0, 0), ox), mul(s0, a_z));
+        let ay = sub(sub(p(0, 1), oy), mul(s1, a_z));
+        let bx = sub(sub(p(1, 0), ox), mul(s0, b_z));
+        let by = sub(sub(p(1, 1), oy), mul(s1, b_z));
+        let cx = sub(sub(p(2, 0), ox), mul(s0, c_z));
+        let cy = sub(sub(p(2, 1), oy), mul(s1, c_z));
+        let u = sub(mul(cx, by), mul(cy, bx));
+        let v = sub(mul(ax, cy), mul(ay, cx));
+        let w = sub(mul(bx, ay), mul(by, ax));
         let some_negative = or(or(lt(u, zero), lt(v, zero)), lt(w, zero));
         let some_positive = or(or(gt(u, zero), gt(v, zero)), gt(w, zero));
-        let det = _mm256_add_ps(_mm256_add_ps(u, v), w);
-        let t_scaled = _mm256_add_ps(
-            _mm256_add_ps(
-                _mm256_mul_ps(u, _mm256_mul_ps(s2, a_z)),
-                _mm256_mul_ps(v, _mm256_mul_ps(s2, b_z)),
-            ),
-            _mm256_mul_ps(w, _mm256_mul_ps(s2, c_z)),
+        let det = add(add(u, v), w);
+        let t_scaled = add(
+            add(mul(u, mul(s2, a_z)), mul(v, mul(s2, b_z))),
+            mul(w, mul(s2, c_z)),
         );
-        let end = _mm256_mul_ps($t_max, det);
+        let end = mul($t_max, det);
         let positive = and(gt(t_scaled, zero), lt(t_scaled, end));
         let negative = and(lt(t_scaled, zero), gt(t_scaled, end));
         let det_positive = gt(det, zero);
-        let inside = or(
-            and(det_positive, positive),
-            _mm256_andnot_ps(det_positive, negative),
-        );
-        let hit = _mm256_andnot_ps(
+        let inside = or(and(det_positive, positive), andnot(det_positive, negative));
+        let hit = andnot(
             and(some_negative, some_positive),
-            and(_mm256_cmp_ps::<_CMP_NEQ_UQ>(det, zero), inside),
+            and($neq(det, zero), inside),
         );
-        [hit, t_scaled, det, v, w]
+        (hit, t_scaled, det, v, w)
     }};
+}
+#[cfg(target_arch = "x86_64")]
+pub(super) use crossing;
+
+/// `crossing!` on an octet's rays (`Octet`), eight a register with AVX2.
+#[cfg(target_arch = "x86_64")]
+macro_rules! crossing_octet {
+    ($rays:expr, $at:expr, $t_max:expr) => {
+        crossing!(
+            $rays.o, $rays.s, $at, $t_max;
+            _mm256_set1_ps, _mm256_sub_ps, _mm256_mul_ps, _mm256_add_ps, _mm256_setzero_ps(),
+            |a, b| _mm256_cmp_ps::<_CMP_LT_OS>(a, b),
+            |a, b| _mm256_cmp_ps::<_CMP_GT_OS>(a, b),
+            |a, b| _mm256_cmp_ps::<_CMP_NEQ_UQ>(a, b),
+            _mm256_or_ps, _mm256_and_ps, _mm256_andnot_ps
+        )
+    };
 }
 
 /// The new hits of the `N` rays from ray `N * g` in `found` (an octet's
@@ -264,7 +279,7 @@ pub(super) fn hit_triangle_octet(
     let t_max = unsafe { _mm256_load_ps(best_t.0.as_ptr().add(8 * g)) };
     let [kx, ky, kz] = k;
     let at = |corner: usize, axis: usize| tri[corner][[kx, ky, kz][axis]];
-    let [hit, t_scaled, det, v, w] = crossing!(rays, at, t_max);
+    let (hit, t_scaled, det, v, w) = crossing_octet!(rays, at, t_max);
     if _mm256_movemask_ps(hit) as u32 & m8 == 0 {
         return 0;
     }
@@ -329,7 +344,7 @@ pub(super) fn hit_block_octet(
                 continue;
             }
             let at = |corner: usize, axis: usize| block.p[[kx, ky, kz][axis]][corner][j];
-            let [hit, t_scaled, det, v, w] = crossing!(rays, at, t_max);
+            let (hit, t_scaled, det, v, w) = crossing_octet!(rays, at, t_max);
             if _mm256_movemask_ps(hit) as u32 & m8 == 0 {
                 continue;
             }

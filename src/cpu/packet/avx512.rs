@@ -2,7 +2,7 @@
 //! leaf blocks' tests where sixteen rays share an axis order.
 
 #[cfg(target_arch = "x86_64")]
-use super::avx2::{box_entry_exit, keep_hits};
+use super::avx2::{box_entry_exit, crossing, keep_hits};
 use super::lanes::*;
 use crate::bvh::wide;
 use crate::cpu::trace::Hit;
@@ -67,10 +67,10 @@ pub(super) fn children_avx512<const ANY_HIT: bool>(
 /// `avx2::hit_block_octet` sixteen rays a register: a leaf block's
 /// triangles against the rays of sixteen `h` (rays `16h..16h + 16`) in
 /// `m16`, which share the axis order `k`. The same operations lane for
-/// lane, with the compares' answers in mask registers where AVX2 keeps
-/// them in vectors (the same predicates: ordered `<` and `>`, unordered
-/// `!=`), so each ray gets `hit_block_f32`'s answer to the bit. Writes the
-/// rays' new hits and returns the bits of the rays that found one.
+/// lane (`crossing!`, with the compares' answers in mask registers where
+/// AVX2 keeps them in vectors: the same predicates), so each ray gets
+/// `hit_block_f32`'s answer to the bit. Writes the rays' new hits and
+/// returns the bits of the rays that found one.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
 #[inline]
@@ -103,8 +103,6 @@ pub(super) fn hit_block_sixteen(
         let zero = _mm512_setzero_ps();
         let one = _mm512_set1_ps(1.0);
         let lt = |a, b| _mm512_cmp_ps_mask::<_CMP_LT_OS>(a, b);
-        let gt = |a, b| _mm512_cmp_ps_mask::<_CMP_GT_OS>(a, b);
-        let (sub, mul, add) = (_mm512_sub_ps, _mm512_mul_ps, _mm512_add_ps);
         let mut run_t = t_max;
         let mut run_b1 = zero;
         let mut run_b2 = zero;
@@ -114,44 +112,26 @@ pub(super) fn hit_block_sixteen(
             if lanes & 1 << j == 0 {
                 continue;
             }
-            let p =
-                |corner: usize, axis: usize| _mm512_set1_ps(block.p[[kx, ky, kz][axis]][corner][j]);
-            // `crossing!`'s arithmetic, operation for operation.
-            let a_z = sub(p(0, 2), oz);
-            let b_z = sub(p(1, 2), oz);
-            let c_z = sub(p(2, 2), oz);
-            let ax = sub(sub(p(0, 0), ox), mul(s0, a_z));
-            let ay = sub(sub(p(0, 1), oy), mul(s1, a_z));
-            let bx = sub(sub(p(1, 0), ox), mul(s0, b_z));
-            let by = sub(sub(p(1, 1), oy), mul(s1, b_z));
-            let cx = sub(sub(p(2, 0), ox), mul(s0, c_z));
-            let cy = sub(sub(p(2, 1), oy), mul(s1, c_z));
-            let u = sub(mul(cx, by), mul(cy, bx));
-            let v = sub(mul(ax, cy), mul(ay, cx));
-            let w = sub(mul(bx, ay), mul(by, ax));
-            let some_negative = lt(u, zero) | lt(v, zero) | lt(w, zero);
-            let some_positive = gt(u, zero) | gt(v, zero) | gt(w, zero);
-            let det = add(add(u, v), w);
-            let t_scaled = add(
-                add(mul(u, mul(s2, a_z)), mul(v, mul(s2, b_z))),
-                mul(w, mul(s2, c_z)),
+            let at = |corner: usize, axis: usize| block.p[[kx, ky, kz][axis]][corner][j];
+            let (hit, t_scaled, det, v, w) = crossing!(
+                [ox, oy, oz], [s0, s1, s2], at, t_max;
+                _mm512_set1_ps, _mm512_sub_ps, _mm512_mul_ps, _mm512_add_ps, zero,
+                lt,
+                |a, b| _mm512_cmp_ps_mask::<_CMP_GT_OS>(a, b),
+                |a, b| _mm512_cmp_ps_mask::<_CMP_NEQ_UQ>(a, b),
+                |a: u16, b: u16| a | b,
+                |a: u16, b: u16| a & b,
+                |a: u16, b: u16| !a & b
             );
-            let end = mul(t_max, det);
-            let positive = gt(t_scaled, zero) & lt(t_scaled, end);
-            let negative = lt(t_scaled, zero) & gt(t_scaled, end);
-            let det_positive = gt(det, zero);
-            let inside = (det_positive & positive) | (!det_positive & negative);
-            let crosses = _mm512_cmp_ps_mask::<_CMP_NEQ_UQ>(det, zero) & inside;
-            let hit = !(some_negative & some_positive) & crosses;
             if u32::from(hit) & m16 == 0 {
                 continue;
             }
             let inv_det = _mm512_div_ps(one, det);
-            let t = mul(t_scaled, inv_det);
+            let t = _mm512_mul_ps(t_scaled, inv_det);
             let keep = hit & lt(t, run_t);
             run_t = _mm512_mask_blend_ps(keep, run_t, t);
-            run_b1 = _mm512_mask_blend_ps(keep, run_b1, mul(v, inv_det));
-            run_b2 = _mm512_mask_blend_ps(keep, run_b2, mul(w, inv_det));
+            run_b1 = _mm512_mask_blend_ps(keep, run_b1, _mm512_mul_ps(v, inv_det));
+            run_b2 = _mm512_mask_blend_ps(keep, run_b2, _mm512_mul_ps(w, inv_det));
             run_k = _mm512_mask_blend_epi32(keep, run_k, _mm512_set1_epi32(j as i32));
         }
         let found = u32::from(_mm512_cmpge_epi32_mask(run_k, _mm512_setzero_si512())) & m16;

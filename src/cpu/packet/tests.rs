@@ -261,8 +261,8 @@ fn sphere_rays_match_the_scalar_test() {
 }
 
 /// The octet triangle test (and the sixteen-ray one, where the CPU has
-/// AVX-512F) gives each ray `wide::hit_block_f32`'s answer to the bit (which triangle, t, barycentrics), over blocks
-/// with empty lanes, degenerate and edge-sharing triangles, rays on
+/// AVX-512F) gives each ray `wide::hit_block_f32`'s answer to the bit
+/// (which triangle, t, barycentrics), over blocks with empty lanes, degenerate and edge-sharing triangles, rays on
 /// every axis order and limits that cut hits off; and each of the
 /// block's triangles alone (`hit_triangle_octet`) gives each ray
 /// `hit_triangle`'s.
@@ -410,18 +410,21 @@ fn sixteens_match_the_block_test(
     limit: &[f32; WIDTH],
     next: &mut impl FnMut() -> f32,
 ) -> u32 {
+    if !std::arch::is_x86_feature_detected!("avx512f") {
+        return 0;
+    }
     let mut sixteens = 0;
     for h in 0..WIDTH / 16 {
         let (Some(k), Some(k2)) = (soa.k[2 * h], soa.k[2 * h + 1]) else {
             continue;
         };
-        if k != k2 || !std::arch::is_x86_feature_detected!("avx512f") {
+        if k != k2 {
             continue;
         }
         sixteens += 1;
         let m16 = (next().to_bits() >> 3 | 0x1001) & 0xffff;
         let (mut best, mut best_t) = no_hits(limit);
-        // SAFETY: the CPU has AVX-512F, checked just above.
+        // SAFETY: the CPU has AVX-512F, checked above.
         let found = unsafe { hit_block_sixteen(block, soa, k, h, m16, &mut best, &mut best_t) };
         for i in 0..16 {
             let r = 16 * h + i;
