@@ -38,7 +38,7 @@ pub(super) use box_entry_exit;
 /// in `Vec4::min`'s and `max`'s order, so NaNs fall the same way; `<=` is
 /// the same ordered compare), so each ray gets the same answer to the bit.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,bmi1,bmi2,lzcnt,popcnt")]
 #[inline]
 pub(super) fn children_avx2<const ANY_HIT: bool>(
     node: &wide::Node4,
@@ -112,7 +112,7 @@ pub(super) fn children_avx2<const ANY_HIT: bool>(
 
 /// The least of a register's eight lanes (none NaN).
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,bmi1,bmi2,lzcnt,popcnt")]
 #[inline]
 fn min_across(t: std::arch::x86_64::__m256) -> f32 {
     use std::arch::x86_64::*;
@@ -134,7 +134,7 @@ struct Octet {
 #[cfg(target_arch = "x86_64")]
 impl Octet {
     /// Octet `g`'s rays of `soa`, in the order `k`.
-    #[target_feature(enable = "avx2")]
+    #[target_feature(enable = "avx2,bmi1,bmi2,lzcnt,popcnt")]
     #[inline]
     fn load(soa: &Soa, k: [usize; 3], g: usize) -> Octet {
         use std::arch::x86_64::*;
@@ -262,7 +262,7 @@ pub(super) fn keep_hits<const N: usize>(
 /// that found one. For leaves that are no SIMD block (spheres among the
 /// triangles), whose triangles each ray tested alone.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,bmi1,bmi2,lzcnt,popcnt")]
 #[inline]
 pub(super) fn hit_triangle_octet(
     tri: &[glam::Vec3; 3],
@@ -308,7 +308,7 @@ pub(super) fn hit_triangle_octet(
 /// gets `hit_block_f32`'s answer to the bit. Writes the rays' new hits
 /// and returns the bits of the rays that found one.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,bmi1,bmi2,lzcnt,popcnt")]
 #[inline]
 pub(super) fn hit_block_octet(
     block: &wide::LeafBlock,

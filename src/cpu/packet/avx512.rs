@@ -15,7 +15,7 @@ use crate::cpu::Real;
 /// nearest entry is a masked reduction over rays that passed, whose entries
 /// are never NaN, so its order does not matter.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
+#[target_feature(enable = "avx512f,bmi1,bmi2,lzcnt,popcnt")]
 #[inline]
 pub(super) fn children_avx512<const ANY_HIT: bool>(
     node: &wide::Node4,
@@ -72,7 +72,7 @@ pub(super) fn children_avx512<const ANY_HIT: bool>(
 /// `hit_block_f32`'s answer to the bit. Writes the rays' new hits and
 /// returns the bits of the rays that found one.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
+#[target_feature(enable = "avx512f,bmi1,bmi2,lzcnt,popcnt")]
 #[inline]
 pub(super) fn hit_block_sixteen(
     block: &wide::LeafBlock,

@@ -1,13 +1,13 @@
 //! The lanes' shading (`points`) against the single ray's, to the bit,
-//! compiled for SSE (four lanes a register) and, where the CPU has it,
-//! for AVX2 (eight).
+//! compiled for SSE (four lanes a register) and, where the CPU has them,
+//! for AVX2 (eight) and AVX-512 (sixteen).
 
 use super::lanes::{lane, set_lane, WIDTH, ZEROS};
 use super::points::*;
 use crate::bvh::Bvh;
 use crate::cpu::trace::make_ray;
 use crate::cpu::trace::{point_shading, shadow_origin, surface_point, CpuGeometry, NO_HIT};
-use crate::cpu::trace::{CpuScene, Hit, SurfacePoint};
+use crate::cpu::trace::{CpuScene, Hit, Ray, SurfacePoint};
 use crate::cpu::CpuOptions;
 use crate::scene::{Material, Scene, Triangle, Vertex};
 use glam::{DVec3, Vec3};
@@ -21,26 +21,47 @@ fn uniform(seed: u32) -> impl FnMut() -> f32 {
     }
 }
 
-/// `f` once as compiled here (SSE) and once inside an AVX2 function
-/// where the CPU has AVX2 (saying so where it has not), so that both
-/// widths the renderer runs are checked.
-fn both_widths(f: &dyn Fn()) {
-    f();
+/// A check that `all_widths` runs at every width the renderer runs: each
+/// impl's `run` is `#[inline(always)]`, so that it is compiled into each
+/// width's function (its lanes' loops vectorised there), which a closure
+/// called through `Fn` was not.
+trait AtEveryWidth {
+    fn run(&self);
+}
+
+/// `check` once as compiled here (SSE) and once inside an AVX2 and an
+/// AVX-512 function where the CPU has them (saying so where it has not).
+fn all_widths<C: AtEveryWidth>(check: &C) {
+    check.run();
     #[cfg(target_arch = "x86_64")]
     {
-        #[target_feature(enable = "avx2")]
-        fn avx2(f: &dyn Fn()) {
-            f()
+        #[target_feature(enable = "avx2,bmi1,bmi2,lzcnt,popcnt")]
+        fn avx2<C: AtEveryWidth>(check: &C) {
+            check.run()
         }
-        if std::arch::is_x86_feature_detected!("avx2") {
-            // SAFETY: the CPU has AVX2, checked just above.
-            unsafe { avx2(f) };
-            return;
+        #[target_feature(enable = "avx512f,bmi1,bmi2,lzcnt,popcnt")]
+        fn avx512<C: AtEveryWidth>(check: &C) {
+            check.run()
+        }
+        if crate::cpu::simd::has_avx2() {
+            // SAFETY: the CPU has AVX2 and the rest, checked just above.
+            unsafe { avx2(check) };
+        } else {
+            skipped("the AVX2 lanes (this CPU has no AVX2)");
+        }
+        if crate::cpu::simd::has_avx512() {
+            // SAFETY: the CPU has AVX-512F and the rest, checked just above.
+            unsafe { avx512(check) };
+        } else {
+            skipped("the AVX-512 lanes (this CPU has no AVX-512F)");
         }
     }
+}
+
+fn skipped(what: &str) {
     let _ = std::io::Write::write_all(
         &mut std::io::stderr(),
-        b"SKIPPED: the AVX2 lanes (this CPU has no AVX2)\n",
+        format!("SKIPPED: {what}\n").as_bytes(),
     );
 }
 
@@ -139,29 +160,43 @@ fn lane_surface_points_are_the_generic_ones_to_the_bit() {
             });
         }
     }
-    both_widths(&|| {
-        // Scratch kept from packet to packet, as the renderer keeps it.
-        let mut corners = Corners::ZERO;
-        let mut points = Points::ZERO;
-        for (c, chunk) in cases.chunks(WIDTH).enumerate() {
-            let mut hits = [chunk[0]; WIDTH];
-            hits[..chunk.len()].copy_from_slice(chunk);
-            let mask = u32::MAX >> (32 - chunk.len());
-            // Every third packet with a lane left out.
-            let mask = if c % 3 == 0 { mask & !2 } else { mask };
-            triangle_points(&cpu, &hits, mask, &mut corners, &mut points);
-            for (i, hit) in hits.iter().enumerate().filter(|(i, _)| mask >> i & 1 != 0) {
-                let want = surface_point(&cpu, &ray, hit);
-                assert_eq!(
-                    fields(&points.get(i)),
-                    fields(&want),
-                    "triangle {}, b {} {}",
-                    hit.prim,
-                    hit.b1,
-                    hit.b2
-                );
+    struct Check<'a> {
+        cpu: &'a CpuScene<'a, f32>,
+        cases: &'a [Hit<f32>],
+        ray: &'a Ray<f32>,
+    }
+    impl AtEveryWidth for Check<'_> {
+        #[inline(always)]
+        fn run(&self) {
+            let Check { cpu, cases, ray } = *self;
+            // Scratch kept from packet to packet, as the renderer keeps it.
+            let mut corners = Corners::ZERO;
+            let mut points = Points::ZERO;
+            for (c, chunk) in cases.chunks(WIDTH).enumerate() {
+                let mut hits = [chunk[0]; WIDTH];
+                hits[..chunk.len()].copy_from_slice(chunk);
+                let mask = u32::MAX >> (32 - chunk.len());
+                // Every third packet with a lane left out.
+                let mask = if c % 3 == 0 { mask & !2 } else { mask };
+                triangle_points(cpu, &hits, mask, &mut corners, &mut points);
+                for (i, hit) in hits.iter().enumerate().filter(|(i, _)| mask >> i & 1 != 0) {
+                    let want = surface_point(cpu, ray, hit);
+                    assert_eq!(
+                        fields(&points.get(i)),
+                        fields(&want),
+                        "triangle {}, b {} {}",
+                        hit.prim,
+                        hit.b1,
+                        hit.b2
+                    );
+                }
             }
         }
+    }
+    all_widths(&Check {
+        cpu: &cpu,
+        cases: &cases,
+        ray: &ray,
     });
 }
 
@@ -195,28 +230,36 @@ fn lane_shadow_rays_are_the_generic_ones_to_the_bit() {
     let geometry = CpuGeometry::new(&scene, &bvh, &Default::default());
     let camera = crate::camera::Camera::new(64, 48);
     let cpu = CpuScene::new(&scene, &bvh, &geometry, &camera, &CpuOptions::default());
-    both_widths(&|| {
-        let mut next = uniform(11);
-        for round in 0..3000 {
-            let sps: [SurfacePoint<f32>; WIDTH] =
-                std::array::from_fn(|i| random_point(&mut next, round * WIDTH + i));
-            let mut points = Points::ZERO;
-            for (i, sp) in sps.iter().enumerate() {
-                points.set(i, sp);
-            }
-            let target = match round % 3 {
-                0 => sps[round % WIDTH].p,
-                _ => Vec3::new(next(), next(), next()) * 20.0,
-            };
-            let (mut origin, mut dir) = (ZEROS, ZEROS);
-            shadow_rays(&points, target, &mut origin, &mut dir);
-            for (i, sp) in sps.iter().enumerate() {
-                let want = shadow_origin(&cpu, sp, target);
-                assert_eq!(bits(lane(&origin, i)), bits(want), "round {round} lane {i}");
-                assert_eq!(bits(lane(&dir, i)), bits(target - want), "round {round}");
+    struct Check<'a> {
+        cpu: &'a CpuScene<'a, f32>,
+    }
+    impl AtEveryWidth for Check<'_> {
+        #[inline(always)]
+        fn run(&self) {
+            let Check { cpu } = *self;
+            let mut next = uniform(11);
+            for round in 0..3000 {
+                let sps: [SurfacePoint<f32>; WIDTH] =
+                    std::array::from_fn(|i| random_point(&mut next, round * WIDTH + i));
+                let mut points = Points::ZERO;
+                for (i, sp) in sps.iter().enumerate() {
+                    points.set(i, sp);
+                }
+                let target = match round % 3 {
+                    0 => sps[round % WIDTH].p,
+                    _ => Vec3::new(next(), next(), next()) * 20.0,
+                };
+                let (mut origin, mut dir) = (ZEROS, ZEROS);
+                shadow_rays(&points, target, &mut origin, &mut dir);
+                for (i, sp) in sps.iter().enumerate() {
+                    let want = shadow_origin(cpu, sp, target);
+                    assert_eq!(bits(lane(&origin, i)), bits(want), "round {round} lane {i}");
+                    assert_eq!(bits(lane(&dir, i)), bits(target - want), "round {round}");
+                }
             }
         }
-    });
+    }
+    all_widths(&Check { cpu: &cpu });
 }
 
 /// What each lit lane gains from a point light is `point_shading`'s
@@ -225,57 +268,62 @@ fn lane_shadow_rays_are_the_generic_ones_to_the_bit() {
 /// normal); the lanes not lit keep their colour.
 #[test]
 fn lane_point_light_is_the_generic_one_to_the_bit() {
-    both_widths(&|| {
-        let mut next = uniform(9);
-        for round in 0..6000 {
-            let sps: [SurfacePoint<f32>; WIDTH] =
-                std::array::from_fn(|i| random_point(&mut next, round * WIDTH + i));
-            let mut points = Points::ZERO;
-            let (mut dirs, mut colour) = (ZEROS, ZEROS);
-            let mut views = [Vec3::ZERO; WIDTH];
-            for (i, sp) in sps.iter().enumerate() {
-                points.set(i, sp);
-                views[i] = match i % 5 {
-                    0 => sp.n,
-                    1 => -sp.n,
-                    _ => Vec3::new(next(), next(), next()).normalize_or_zero(),
+    struct Check;
+    impl AtEveryWidth for Check {
+        #[inline(always)]
+        fn run(&self) {
+            let mut next = uniform(9);
+            for round in 0..6000 {
+                let sps: [SurfacePoint<f32>; WIDTH] =
+                    std::array::from_fn(|i| random_point(&mut next, round * WIDTH + i));
+                let mut points = Points::ZERO;
+                let (mut dirs, mut colour) = (ZEROS, ZEROS);
+                let mut views = [Vec3::ZERO; WIDTH];
+                for (i, sp) in sps.iter().enumerate() {
+                    points.set(i, sp);
+                    views[i] = match i % 5 {
+                        0 => sp.n,
+                        1 => -sp.n,
+                        _ => Vec3::new(next(), next(), next()).normalize_or_zero(),
+                    };
+                    set_lane(&mut dirs, i, -views[i]);
+                    set_lane(&mut colour, i, Vec3::new(next(), next(), next()).abs());
+                }
+                let before = colour;
+                let target = match round % 7 {
+                    0 => sps[round % WIDTH].p,
+                    1 => sps[round % WIDTH].p - sps[round % WIDTH].n,
+                    _ => Vec3::new(next(), next(), next()) * 20.0,
                 };
-                set_lane(&mut dirs, i, -views[i]);
-                set_lane(&mut colour, i, Vec3::new(next(), next(), next()).abs());
-            }
-            let before = colour;
-            let target = match round % 7 {
-                0 => sps[round % WIDTH].p,
-                1 => sps[round % WIDTH].p - sps[round % WIDTH].n,
-                _ => Vec3::new(next(), next(), next()) * 20.0,
-            };
-            let color = Vec3::new(next(), next(), next()).abs();
-            let lit = crate::hash::hash_u32(round as u32) | 1;
-            let f = facing(&points, &dirs, target);
-            let dark = no_highlight(&f, &points, lit);
-            let mut terms = ZEROS;
-            // In two goes, as the packets fill them: first the points with
-            // no highlight, then the others.
-            fill_terms(&points, &f, dark, color, &mut terms);
-            fill_terms(&points, &f, lit & !dark, color, &mut terms);
-            add_terms(&mut colour, &terms, lit);
-            let blocker = Hit {
-                t: 0.0,
-                prim: NO_HIT,
-                b1: 0.0,
-                b2: 0.0,
-            };
-            for (i, sp) in sps.iter().enumerate() {
-                let want = if lit >> i & 1 != 0 {
-                    let term = point_shading(sp, views[i], target, color, sp.p, blocker);
-                    lane(&before, i) + term.contribution
-                } else {
-                    lane(&before, i)
+                let color = Vec3::new(next(), next(), next()).abs();
+                let lit = crate::hash::hash_u32(round as u32) | 1;
+                let f = facing(&points, &dirs, target);
+                let dark = no_highlight(&f, &points, lit);
+                let mut terms = ZEROS;
+                // In two goes, as the packets fill them: first the points with
+                // no highlight, then the others.
+                fill_terms(&points, &f, dark, color, &mut terms);
+                fill_terms(&points, &f, lit & !dark, color, &mut terms);
+                add_terms(&mut colour, &terms, lit);
+                let blocker = Hit {
+                    t: 0.0,
+                    prim: NO_HIT,
+                    b1: 0.0,
+                    b2: 0.0,
                 };
-                assert_eq!(bits(lane(&colour, i)), bits(want), "round {round} lane {i}");
+                for (i, sp) in sps.iter().enumerate() {
+                    let want = if lit >> i & 1 != 0 {
+                        let term = point_shading(sp, views[i], target, color, sp.p, blocker);
+                        lane(&before, i) + term.contribution
+                    } else {
+                        lane(&before, i)
+                    };
+                    assert_eq!(bits(lane(&colour, i)), bits(want), "round {round} lane {i}");
+                }
             }
         }
-    });
+    }
+    all_widths(&Check);
 }
 
 /// A lane `changed_by` leaves out is one whose colour comes out the same
@@ -284,43 +332,48 @@ fn lane_point_light_is_the_generic_one_to_the_bit() {
 /// colour's ulp, NaN and ordinary ones, on colours of either sign and 0.
 #[test]
 fn untraced_shadow_rays_could_not_change_a_colour() {
-    both_widths(&|| {
-        let mut next = uniform(21);
-        let mut left_out = 0;
-        for round in 0..4000 {
-            let (mut colour, mut terms) = (ZEROS, ZEROS);
-            for i in 0..WIDTH {
-                for a in 0..3 {
-                    let c = match (round + i + a) % 5 {
-                        0 => 0.0,
-                        1 => -0.0,
-                        _ => next() * 4.0,
-                    };
-                    let t = match (round * 3 + i * 7 + a) % 9 {
-                        0..=2 => 0.0,
-                        3 => -0.0,
-                        4 => c * 1e-9,
-                        5 => f32::NAN,
-                        _ => next().abs(),
-                    };
-                    colour[a].0[i] = c;
-                    terms[a].0[i] = t;
+    struct Check;
+    impl AtEveryWidth for Check {
+        #[inline(always)]
+        fn run(&self) {
+            let mut next = uniform(21);
+            let mut left_out = 0;
+            for round in 0..4000 {
+                let (mut colour, mut terms) = (ZEROS, ZEROS);
+                for i in 0..WIDTH {
+                    for a in 0..3 {
+                        let c = match (round + i + a) % 5 {
+                            0 => 0.0,
+                            1 => -0.0,
+                            _ => next() * 4.0,
+                        };
+                        let t = match (round * 3 + i * 7 + a) % 9 {
+                            0..=2 => 0.0,
+                            3 => -0.0,
+                            4 => c * 1e-9,
+                            5 => f32::NAN,
+                            _ => next().abs(),
+                        };
+                        colour[a].0[i] = c;
+                        terms[a].0[i] = t;
+                    }
+                }
+                let lit = crate::hash::hash_u32(round as u32 ^ 0x5bd1);
+                let traced = changed_by(&colour, &terms, lit);
+                assert_eq!(traced & !lit, 0, "round {round}: a lane without a surface");
+                let (mut blocked, mut clear) = (colour, colour);
+                add_terms(&mut clear, &terms, lit);
+                add_terms(&mut blocked, &terms, 0);
+                for i in 0..WIDTH {
+                    let same = bits(lane(&clear, i)) == bits(lane(&blocked, i));
+                    if lit >> i & 1 != 0 {
+                        assert_eq!(traced >> i & 1 == 0, same, "round {round} lane {i}");
+                        left_out += u32::from(same);
+                    }
                 }
             }
-            let lit = crate::hash::hash_u32(round as u32 ^ 0x5bd1);
-            let traced = changed_by(&colour, &terms, lit);
-            assert_eq!(traced & !lit, 0, "round {round}: a lane without a surface");
-            let (mut blocked, mut clear) = (colour, colour);
-            add_terms(&mut clear, &terms, lit);
-            add_terms(&mut blocked, &terms, 0);
-            for i in 0..WIDTH {
-                let same = bits(lane(&clear, i)) == bits(lane(&blocked, i));
-                if lit >> i & 1 != 0 {
-                    assert_eq!(traced >> i & 1 == 0, same, "round {round} lane {i}");
-                    left_out += u32::from(same);
-                }
-            }
+            assert!(left_out > 0, "no lane was left out");
         }
-        assert!(left_out > 0, "no lane was left out");
-    });
+    }
+    all_widths(&Check);
 }

@@ -1,13 +1,14 @@
 //! A packet's shading in lanes: its triangles' surface points, their
 //! shadow rays' origins and the point lights' terms, one f32 array per
 //! component with a ray to each element, in loops the compiler turns into
-//! whole registers of rays (eight under AVX2). Each lane takes the single
-//! ray's operations (`trace::surface_point`, `shadow_origin`,
-//! `point_shading`) in the same order on the same values: multiplies, adds,
-//! divisions, square roots and the same `f32::max`, each correctly rounded
-//! whatever the width, and no fused multiply-add (Rust never contracts).
-//! So every lane is the single ray's to the bit (tested). `powf` stays one
-//! call a lane, the libm one the single ray calls.
+//! whole registers of rays (eight under AVX2, sixteen under AVX-512). Each
+//! lane takes the single ray's operations (`trace::surface_point`,
+//! `shadow_origin`, `point_shading`) in the same order on the same values:
+//! multiplies, adds, divisions, square roots and the same `f32::max`, each
+//! correctly rounded whatever the width, and no fused multiply-add (Rust
+//! never contracts). So every lane is the single ray's to the bit (tested
+//! at each width). `powf` stays one call a lane, the libm one the single
+//! ray calls.
 //!
 //! Shading a pixel at a time in SSE (a vector's three components in one
 //! register) was 40% of `table`'s render: each step waited on the one

@@ -75,17 +75,35 @@ struct Scratch {
 /// them.
 fn colours(scene: &CpuScene<f32>, pixels: &[[u32; 2]], scratch: &mut Scratch) -> [[f32; 3]; WIDTH] {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU has AVX2, checked just above.
+    if crate::cpu::simd::has_avx512() {
+        // SAFETY: the CPU has AVX-512F and the rest, checked just above.
+        return unsafe { colours_avx512(scene, pixels, scratch) };
+    }
+    #[cfg(target_arch = "x86_64")]
+    if crate::cpu::simd::has_avx2() {
+        // SAFETY: the CPU has AVX2 and the rest, checked just above.
         return unsafe { colours_avx2(scene, pixels, scratch) };
     }
+    colours_with(scene, pixels, scratch)
+}
+
+/// `colours_with` compiled for AVX-512, so that its lanes' loops take
+/// sixteen rays a register (`table` 22.0 -> 19.8 ms against AVX2's eight,
+/// one thread, minimums of 61 renders).
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,bmi1,bmi2,lzcnt,popcnt")]
+fn colours_avx512(
+    scene: &CpuScene<f32>,
+    pixels: &[[u32; 2]],
+    scratch: &mut Scratch,
+) -> [[f32; 3]; WIDTH] {
     colours_with(scene, pixels, scratch)
 }
 
 /// `colours_with` compiled for AVX2, so that its lanes' loops
 /// (`points`) take eight rays a register.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,bmi1,bmi2,lzcnt,popcnt")]
 fn colours_avx2(
     scene: &CpuScene<f32>,
     pixels: &[[u32; 2]],

@@ -112,11 +112,11 @@ fn packets_find_what_single_rays_find() {
 fn avx_boxes_match_sse() {
     #[cfg(target_arch = "x86_64")]
     {
-        if !std::arch::is_x86_feature_detected!("avx2") {
+        if !crate::cpu::simd::has_avx2() {
             skipped("avx_boxes_match_sse: this CPU has no AVX2");
             return;
         }
-        let avx512 = std::arch::is_x86_feature_detected!("avx512f");
+        let avx512 = crate::cpu::simd::has_avx512();
         if !avx512 {
             skipped("avx_boxes_match_sse's AVX-512 half: this CPU has no AVX-512F");
         }
@@ -269,7 +269,7 @@ fn sphere_rays_match_the_scalar_test() {
 #[cfg(target_arch = "x86_64")]
 #[test]
 fn octet_triangle_test_matches_the_block_test() {
-    if !std::arch::is_x86_feature_detected!("avx2") {
+    if !crate::cpu::simd::has_avx2() {
         skipped("octet_triangle_test_matches_the_block_test: this CPU has no AVX2, so the octet test never runs");
         return;
     }
@@ -390,7 +390,7 @@ fn octet_triangle_test_matches_the_block_test() {
         hits > 20_000 && misses > 20_000 && octets > 8_000,
         "{hits} hits, {misses} misses, {octets} octets"
     );
-    if std::arch::is_x86_feature_detected!("avx512f") {
+    if crate::cpu::simd::has_avx512() {
         assert!(sixteens > 2_000, "{sixteens} sixteens");
     } else {
         skipped("octet_triangle_test_matches_the_block_test: this CPU has no AVX-512F, so the sixteen-ray test did not run");
@@ -410,7 +410,7 @@ fn sixteens_match_the_block_test(
     limit: &[f32; WIDTH],
     next: &mut impl FnMut() -> f32,
 ) -> u32 {
-    if !std::arch::is_x86_feature_detected!("avx512f") {
+    if !crate::cpu::simd::has_avx512() {
         return 0;
     }
     let mut sixteens = 0;

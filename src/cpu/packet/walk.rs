@@ -51,8 +51,9 @@ pub(super) fn traverse_packet(
 /// the CPU has.
 fn run(scene: &CpuScene<f32>, query: Query, any_hit: bool) -> [Hit<f32>; WIDTH] {
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx512f") {
-        // SAFETY: the CPU has AVX-512F (and so AVX2), checked just above.
+    if crate::cpu::simd::has_avx512() {
+        // SAFETY: the CPU has AVX-512F and the bit instructions
+        // (`has_avx512`), checked just above.
         return unsafe {
             if any_hit {
                 traverse_avx512::<true>(scene, query)
@@ -62,8 +63,9 @@ fn run(scene: &CpuScene<f32>, query: Query, any_hit: bool) -> [Hit<f32>; WIDTH] 
         };
     }
     #[cfg(target_arch = "x86_64")]
-    if std::arch::is_x86_feature_detected!("avx2") {
-        // SAFETY: the CPU has AVX2, checked just above.
+    if crate::cpu::simd::has_avx2() {
+        // SAFETY: the CPU has AVX2 and the bit instructions (`has_avx2`),
+        // checked just above.
         return unsafe {
             if any_hit {
                 traverse_avx2::<true>(scene, query)
@@ -86,7 +88,7 @@ pub(super) const AVX512: u8 = 2;
 
 /// `traverse_with` compiled for AVX2, so its box tests inline.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2")]
+#[target_feature(enable = "avx2,bmi1,bmi2,lzcnt,popcnt")]
 pub(super) fn traverse_avx2<const ANY_HIT: bool>(
     scene: &CpuScene<f32>,
     query: Query,
@@ -95,9 +97,9 @@ pub(super) fn traverse_avx2<const ANY_HIT: bool>(
 }
 
 /// `traverse_with` compiled for AVX-512: its box tests take sixteen rays a
-/// register, its leaf tests stay AVX2's octets.
+/// register, and its leaf tests too where two octets share an axis order.
 #[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx512f")]
+#[target_feature(enable = "avx512f,bmi1,bmi2,lzcnt,popcnt")]
 pub(super) fn traverse_avx512<const ANY_HIT: bool>(
     scene: &CpuScene<f32>,
     query: Query,
