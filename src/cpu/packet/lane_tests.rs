@@ -44,13 +44,13 @@ fn all_widths<C: AtEveryWidth>(check: &C) {
             check.run()
         }
         if crate::cpu::simd::has_avx2() {
-            // SAFETY: the CPU has AVX2 and the rest, checked just above.
+            // SAFETY: `has_avx2` holds, checked just above.
             unsafe { avx2(check) };
         } else {
             skipped("the AVX2 lanes (this CPU has no AVX2)");
         }
         if crate::cpu::simd::has_avx512() {
-            // SAFETY: the CPU has AVX-512F and the rest, checked just above.
+            // SAFETY: `has_avx512` holds, checked just above.
             unsafe { avx512(check) };
         } else {
             skipped("the AVX-512 lanes (this CPU has no AVX-512F)");

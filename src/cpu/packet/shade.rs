@@ -76,12 +76,12 @@ struct Scratch {
 fn colours(scene: &CpuScene<f32>, pixels: &[[u32; 2]], scratch: &mut Scratch) -> [[f32; 3]; WIDTH] {
     #[cfg(target_arch = "x86_64")]
     if crate::cpu::simd::has_avx512() {
-        // SAFETY: the CPU has AVX-512F and the rest, checked just above.
+        // SAFETY: `has_avx512` holds, checked just above.
         return unsafe { colours_avx512(scene, pixels, scratch) };
     }
     #[cfg(target_arch = "x86_64")]
     if crate::cpu::simd::has_avx2() {
-        // SAFETY: the CPU has AVX2 and the rest, checked just above.
+        // SAFETY: `has_avx2` holds, checked just above.
         return unsafe { colours_avx2(scene, pixels, scratch) };
     }
     colours_with(scene, pixels, scratch)

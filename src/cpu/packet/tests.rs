@@ -166,7 +166,7 @@ fn avx_boxes_match_sse() {
             let [mut a, mut b, mut c, mut d, mut e, mut f] = [0; 6].map(|_| Children::NONE);
             for node in &cpu.wide.nodes {
                 children_sse::<false>(node, &soa, mask, &best_t, &mut a);
-                // SAFETY: the CPU has AVX2, checked above.
+                // SAFETY: `has_avx2` holds, checked above.
                 unsafe { children_avx2::<false>(node, &soa, mask, &best_t, &mut b) };
                 assert_eq!(a.hits, b.hits);
                 // The any-hit tests find the same rays in each box.
@@ -192,7 +192,7 @@ fn avx_boxes_match_sse() {
                 };
                 same_entries(&b);
                 if avx512 {
-                    // SAFETY: the CPU has AVX-512F, checked above.
+                    // SAFETY: `has_avx512` holds, checked above.
                     unsafe {
                         children_avx512::<false>(node, &soa, mask, &best_t, &mut e);
                         children_avx512::<true>(node, &soa, mask, &best_t, &mut f);
@@ -327,7 +327,7 @@ fn octet_triangle_test_matches_the_block_test() {
             octets += 1;
             let m8 = (next().to_bits() >> 3 | 0x11) & 255;
             let (mut best, mut best_t) = no_hits(&limit);
-            // SAFETY: the CPU has AVX2, checked above.
+            // SAFETY: `has_avx2` holds, checked above.
             let found = unsafe { hit_block_octet(&block, &soa, k, g, m8, &mut best, &mut best_t) };
             for i in 0..8 {
                 let r = 8 * g + i;
@@ -363,7 +363,7 @@ fn octet_triangle_test_matches_the_block_test() {
             for (j, tri) in corners.iter().enumerate().take(used) {
                 let (mut best, mut best_t) = no_hits(&limit);
                 let prim = 10 + j as u32;
-                // SAFETY: the CPU has AVX2, checked above.
+                // SAFETY: `has_avx2` holds, checked above.
                 let found = unsafe {
                     hit_triangle_octet(tri, prim, &soa, (k, g, m8), &mut best, &mut best_t)
                 };
@@ -424,7 +424,7 @@ fn sixteens_match_the_block_test(
         sixteens += 1;
         let m16 = (next().to_bits() >> 3 | 0x1001) & 0xffff;
         let (mut best, mut best_t) = no_hits(limit);
-        // SAFETY: the CPU has AVX-512F, checked above.
+        // SAFETY: `has_avx512` holds, checked above.
         let found = unsafe { hit_block_sixteen(block, soa, k, h, m16, &mut best, &mut best_t) };
         for i in 0..16 {
             let r = 16 * h + i;

@@ -191,8 +191,8 @@ pub(super) fn traverse_with<const SIMD: u8, const ANY_HIT: bool>(
         let node = &scene.wide.nodes[index as usize];
         #[cfg(target_arch = "x86_64")]
         // SAFETY: SIMD is AVX512 only in `traverse_avx512`, which runs only
-        // where the CPU has AVX-512F, and AVX2 only in `traverse_avx2`,
-        // which runs only where it has AVX2.
+        // where `has_avx512` holds, and AVX2 only in `traverse_avx2`, which
+        // runs only where `has_avx2` does.
         if SIMD == AVX512 {
             unsafe { children_avx512::<ANY_HIT>(node, soa, mask, &best_t, &mut kids) }
         } else if SIMD == AVX2 {
@@ -358,7 +358,7 @@ fn test_leaf<const SIMD: u8, const ANY_HIT: bool>(
             if SIMD == AVX512 {
                 soa.take_sixteens(&mut rays_in, |h, k, m16| {
                     // SAFETY: SIMD is AVX512 only in `traverse_avx512`,
-                    // which runs only where the CPU has AVX-512F.
+                    // which runs only where `has_avx512` holds.
                     let found =
                         unsafe { hit_block_sixteen(leaf, soa, k, h, m16, p.best, p.best_t) };
                     if ANY_HIT {
@@ -369,7 +369,7 @@ fn test_leaf<const SIMD: u8, const ANY_HIT: bool>(
             soa.take_octets(&mut rays_in, |g, k, m8| {
                 // SAFETY: SIMD is AVX2 or more only in
                 // `traverse_avx2` and `traverse_avx512`, which run
-                // only where the CPU has AVX2 (AVX-512F implies it).
+                // only where `has_avx2` holds (`has_avx512` implies it).
                 let found = unsafe { hit_block_octet(leaf, soa, k, g, m8, p.best, p.best_t) };
                 if ANY_HIT {
                     *p.live &= !found;
@@ -431,7 +431,7 @@ fn test_leaf<const SIMD: u8, const ANY_HIT: bool>(
                     soa.take_octets(&mut each, |g, k, m8| {
                         // SAFETY: SIMD is AVX2 or more only in
                         // `traverse_avx2` and `traverse_avx512`, which run
-                        // only where the CPU has AVX2.
+                        // only where `has_avx2` holds.
                         let found = unsafe {
                             hit_triangle_octet(tri, prim, soa, (k, g, m8), p.best, p.best_t)
                         };
