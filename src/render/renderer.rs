@@ -298,7 +298,7 @@ impl Renderer {
     }
 
     /// Renders `scene`; `progress(done, total)` counts pixels finished (GPU)
-    /// or rows (CPU, taken in an order spread over the image, so that the
+    /// or rows (CPU, taken in runs spread over the image, so that the
     /// share done tracks the share of time spent).
     pub fn render(
         &self,
