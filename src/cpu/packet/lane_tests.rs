@@ -4,6 +4,7 @@
 
 use super::lanes::{lane, set_lane, WIDTH, ZEROS};
 use super::points::*;
+use super::tests::skipped;
 use crate::bvh::Bvh;
 use crate::cpu::trace::make_ray;
 use crate::cpu::trace::{point_shading, shadow_origin, surface_point, CpuGeometry, NO_HIT};
@@ -56,13 +57,6 @@ fn all_widths<C: AtEveryWidth>(check: &C) {
             skipped("the AVX-512 lanes (this CPU has no AVX-512F)");
         }
     }
-}
-
-fn skipped(what: &str) {
-    let _ = std::io::Write::write_all(
-        &mut std::io::stderr(),
-        format!("SKIPPED: {what}\n").as_bytes(),
-    );
 }
 
 fn bits(v: Vec3) -> [u32; 3] {

@@ -152,14 +152,13 @@ pub(super) fn triangle_points(
             prefetch(std::slice::from_ref(shading));
         }
     }
-    // Each lane's corners' materials, kept to be written below: most
-    // packets meet one material alone (a tile on one object), and then
-    // whole registers take it instead of 21 stores a lane (one thread,
+    // The corners' materials are written after the loop: most packets
+    // meet one material alone (a tile on one object), and then whole
+    // registers take it instead of 21 stores a lane (one thread,
     // fastest of 11, four alternations: the 2M grid 154.8-156.9 ->
     // 150.1-154.8 ms, `table` 19.6-20.4 -> 18.8-19.1, the 22k grid
     // 49.7-50.0 -> 48.8-49.4). `test2`'s corners differ, and `table`'s
     // objects: both ways are in `tests/packets.rs`.
-    let mut materials = [[0u32; 3]; WIDTH];
     let first = hits[lanes.trailing_zeros() as usize % WIDTH].prim as usize;
     let one = scene.shading.get(first).map_or(u32::MAX, |s| s[0].material);
     let mut uniform = true;
@@ -173,7 +172,6 @@ pub(super) fn triangle_points(
         for k in 0..3 {
             set_lane(&mut c.pos[k], i, tri[k]);
             set_lane(&mut c.normal[k], i, shading[k].normal);
-            materials[i][k] = shading[k].material;
             uniform &= shading[k].material == one;
         }
         c.b1.0[i] = hits[i].b1;
@@ -193,8 +191,10 @@ pub(super) fn triangle_points(
         while each != 0 {
             let i = each.trailing_zeros() as usize;
             each &= each - 1;
-            for (k, &material) in materials[i].iter().enumerate() {
-                let m = &scene.materials[material as usize];
+            // The record the loop above read, still in the cache.
+            let shading = &scene.shading[hits[i].prim as usize];
+            for (k, corner) in shading.iter().enumerate() {
+                let m = &scene.materials[corner.material as usize];
                 set_lane(&mut c.kd[k], i, m.kd);
                 set_lane(&mut c.ks[k], i, m.ks);
                 c.shininess[k].0[i] = m.shininess;

@@ -561,7 +561,7 @@ fn packet_pixel_rays_match_pixel_ray() {
 /// Says past libtest's capture (it intercepts the print macros only) that
 /// a test could not run here, and why.
 #[allow(dead_code)]
-fn skipped(why: &str) {
+pub(super) fn skipped(why: &str) {
     use std::io::Write;
     let _ = writeln!(std::io::stderr(), "SKIPPED: {why}");
 }
