@@ -15,11 +15,19 @@ use crate::cpu::Real;
 /// its caller's `target_feature` and inlines as written.
 #[cfg(target_arch = "x86_64")]
 macro_rules! box_entry_exit {
-    ($node:expr, $lane:expr, $o:expr, $inv:expr, $bt:expr, $zero:expr, $scale:expr;
+    ($node:expr, $lane:expr, $o:expr, $inv:expr, $bt:expr, $zero:expr, $scale:expr, $at_origin:expr;
      $set1:ident, $sub:ident, $mul:ident, $min:ident, $max:ident) => {{
+        // x - 0 is x, to the bit: rays from the origin skip the subtraction.
+        let rel = |x: f32, o| {
+            if $at_origin {
+                $set1(x)
+            } else {
+                $sub($set1(x), o)
+            }
+        };
         let slab = |axis: usize| {
-            let t0 = $mul($sub($set1($node.lo[axis][$lane]), $o[axis]), $inv[axis]);
-            let t1 = $mul($sub($set1($node.hi[axis][$lane]), $o[axis]), $inv[axis]);
+            let t0 = $mul(rel($node.lo[axis][$lane], $o[axis]), $inv[axis]);
+            let t1 = $mul(rel($node.hi[axis][$lane], $o[axis]), $inv[axis]);
             ($min(t0, t1), $max(t0, t1))
         };
         let (nx, fx) = slab(0);
@@ -40,7 +48,7 @@ pub(super) use box_entry_exit;
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,bmi1,bmi2,lzcnt,popcnt")]
 #[inline]
-pub(super) fn children_avx2<const ANY_HIT: bool>(
+pub(super) fn children_avx2<const ANY_HIT: bool, const AT_ORIGIN: bool>(
     node: &wide::Node4,
     soa: &Soa,
     mask: u32,
@@ -80,7 +88,7 @@ pub(super) fn children_avx2<const ANY_HIT: bool>(
                     continue;
                 }
                 let (t_near, t_far) = box_entry_exit!(
-                    node, lane, o, inv, bt, zero, scale;
+                    node, lane, o, inv, bt, zero, scale, AT_ORIGIN;
                     _mm256_set1_ps, _mm256_sub_ps, _mm256_mul_ps, _mm256_min_ps, _mm256_max_ps
                 );
                 let passed = _mm256_cmp_ps::<_CMP_LE_OS>(t_near, t_far);
@@ -169,23 +177,32 @@ impl Octet {
 /// arithmetic.
 #[cfg(target_arch = "x86_64")]
 macro_rules! crossing {
-    ($o:expr, $s:expr, $at:expr, $t_max:expr;
+    ($o:expr, $s:expr, $at:expr, $t_max:expr, $at_origin:expr;
      $set1:expr, $sub:expr, $mul:expr, $add:expr, $zero:expr,
      $lt:expr, $gt:expr, $neq:expr, $or:expr, $and:expr, $andnot:expr) => {{
         let [ox, oy, oz] = $o;
         let [s0, s1, s2] = $s;
         let (sub, mul, add, zero) = ($sub, $mul, $add, $zero);
         let (lt, gt, or, and, andnot) = ($lt, $gt, $or, $and, $andnot);
-        let p = |corner: usize, axis: usize| $set1($at(corner, axis));
-        let a_z = sub(p(0, 2), oz);
-        let b_z = sub(p(1, 2), oz);
-        let c_z = sub(p(2, 2), oz);
-        let ax = sub(sub(p(0, 0), ox), mul(s0, a_z));
-        let ay = sub(sub(p(0, 1), oy), mul(s1, a_z));
-        let bx = sub(sub(p(1, 0), ox), mul(s0, b_z));
-        let by = sub(sub(p(1, 1), oy), mul(s1, b_z));
-        let cx = sub(sub(p(2, 0), ox), mul(s0, c_z));
-        let cy = sub(sub(p(2, 1), oy), mul(s1, c_z));
+        // Corner minus origin; x - 0 is x, to the bit, so rays from the
+        // origin skip the subtraction.
+        let p = |corner: usize, axis: usize, o| {
+            let x = $set1($at(corner, axis));
+            if $at_origin {
+                x
+            } else {
+                sub(x, o)
+            }
+        };
+        let a_z = p(0, 2, oz);
+        let b_z = p(1, 2, oz);
+        let c_z = p(2, 2, oz);
+        let ax = sub(p(0, 0, ox), mul(s0, a_z));
+        let ay = sub(p(0, 1, oy), mul(s1, a_z));
+        let bx = sub(p(1, 0, ox), mul(s0, b_z));
+        let by = sub(p(1, 1, oy), mul(s1, b_z));
+        let cx = sub(p(2, 0, ox), mul(s0, c_z));
+        let cy = sub(p(2, 1, oy), mul(s1, c_z));
         let u = sub(mul(cx, by), mul(cy, bx));
         let v = sub(mul(ax, cy), mul(ay, cx));
         let w = sub(mul(bx, ay), mul(by, ax));
@@ -214,9 +231,9 @@ pub(super) use crossing;
 /// `crossing!` on an octet's rays (`Octet`), eight a register with AVX2.
 #[cfg(target_arch = "x86_64")]
 macro_rules! crossing_octet {
-    ($rays:expr, $at:expr, $t_max:expr) => {
+    ($rays:expr, $at:expr, $t_max:expr, $at_origin:expr) => {
         crossing!(
-            $rays.o, $rays.s, $at, $t_max;
+            $rays.o, $rays.s, $at, $t_max, $at_origin;
             _mm256_set1_ps, _mm256_sub_ps, _mm256_mul_ps, _mm256_add_ps, _mm256_setzero_ps(),
             |a, b| _mm256_cmp_ps::<_CMP_LT_OS>(a, b),
             |a, b| _mm256_cmp_ps::<_CMP_GT_OS>(a, b),
@@ -264,7 +281,7 @@ pub(super) fn keep_hits<const N: usize>(
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,bmi1,bmi2,lzcnt,popcnt")]
 #[inline]
-pub(super) fn hit_triangle_octet(
+pub(super) fn hit_triangle_octet<const AT_ORIGIN: bool>(
     tri: &[glam::Vec3; 3],
     prim: u32,
     soa: &Soa,
@@ -279,7 +296,7 @@ pub(super) fn hit_triangle_octet(
     let t_max = unsafe { _mm256_load_ps(best_t.0.as_ptr().add(8 * g)) };
     let [kx, ky, kz] = k;
     let at = |corner: usize, axis: usize| tri[corner][[kx, ky, kz][axis]];
-    let (hit, t_scaled, det, v, w) = crossing_octet!(rays, at, t_max);
+    let (hit, t_scaled, det, v, w) = crossing_octet!(rays, at, t_max, AT_ORIGIN);
     if _mm256_movemask_ps(hit) as u32 & m8 == 0 {
         return 0;
     }
@@ -310,7 +327,7 @@ pub(super) fn hit_triangle_octet(
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,bmi1,bmi2,lzcnt,popcnt")]
 #[inline]
-pub(super) fn hit_block_octet(
+pub(super) fn hit_block_octet<const AT_ORIGIN: bool>(
     block: &wide::LeafBlock,
     soa: &Soa,
     k: [usize; 3],
@@ -344,7 +361,7 @@ pub(super) fn hit_block_octet(
                 continue;
             }
             let at = |corner: usize, axis: usize| block.p[[kx, ky, kz][axis]][corner][j];
-            let (hit, t_scaled, det, v, w) = crossing_octet!(rays, at, t_max);
+            let (hit, t_scaled, det, v, w) = crossing_octet!(rays, at, t_max, AT_ORIGIN);
             if _mm256_movemask_ps(hit) as u32 & m8 == 0 {
                 continue;
             }

@@ -17,7 +17,7 @@ use crate::cpu::Real;
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,bmi1,bmi2,lzcnt,popcnt")]
 #[inline]
-pub(super) fn children_avx512<const ANY_HIT: bool>(
+pub(super) fn children_avx512<const ANY_HIT: bool, const AT_ORIGIN: bool>(
     node: &wide::Node4,
     soa: &Soa,
     mask: u32,
@@ -46,7 +46,7 @@ pub(super) fn children_avx512<const ANY_HIT: bool>(
                     continue;
                 }
                 let (t_near, t_far) = box_entry_exit!(
-                    node, lane, o, inv, bt, zero, scale;
+                    node, lane, o, inv, bt, zero, scale, AT_ORIGIN;
                     _mm512_set1_ps, _mm512_sub_ps, _mm512_mul_ps, _mm512_min_ps, _mm512_max_ps
                 );
                 let hit = _mm512_mask_cmp_ps_mask::<_CMP_LE_OS>(m16, t_near, t_far);
@@ -74,7 +74,7 @@ pub(super) fn children_avx512<const ANY_HIT: bool>(
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,bmi1,bmi2,lzcnt,popcnt")]
 #[inline]
-pub(super) fn hit_block_sixteen(
+pub(super) fn hit_block_sixteen<const AT_ORIGIN: bool>(
     block: &wide::LeafBlock,
     soa: &Soa,
     k: [usize; 3],
@@ -114,7 +114,7 @@ pub(super) fn hit_block_sixteen(
             }
             let at = |corner: usize, axis: usize| block.p[[kx, ky, kz][axis]][corner][j];
             let (hit, t_scaled, det, v, w) = crossing!(
-                [ox, oy, oz], [s0, s1, s2], at, t_max;
+                [ox, oy, oz], [s0, s1, s2], at, t_max, AT_ORIGIN;
                 _mm512_set1_ps, _mm512_sub_ps, _mm512_mul_ps, _mm512_add_ps, zero,
                 lt,
                 |a, b| _mm512_cmp_ps_mask::<_CMP_GT_OS>(a, b),

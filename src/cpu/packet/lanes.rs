@@ -270,6 +270,8 @@ pub(super) struct Query<'a> {
     pub(super) soa: &'a Soa,
     pub(super) active: u32,
     pub(super) t_max: f32,
+    /// Every ray's origin is (+0, +0, +0).
+    pub(super) at_origin: bool,
 }
 
 /// Three components of one vector per ray.

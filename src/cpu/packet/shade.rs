@@ -138,7 +138,7 @@ fn colours_with(
     }
     pixel_rays(scene, &tile, primary);
     count_rays(0, n as u64);
-    let hits = traverse_packet(scene, primary, active, f32::T_INF, false);
+    let hits = traverse_packet(scene, primary, active, f32::T_INF, false, true);
     let mut lit = 0u32;
     for (i, hit) in hits.iter().enumerate() {
         if active & (1 << i) != 0 && hit.prim != NO_HIT {
@@ -229,7 +229,7 @@ fn colours_with(
         }
         make_rays(shadows);
         count_rays(1, u64::from(needed.count_ones()));
-        let blockers = traverse_packet(scene, shadows, needed, 1.0, true);
+        let blockers = traverse_packet(scene, shadows, needed, 1.0, true, false);
         let mut clear = 0u32;
         for (i, b) in blockers.iter().enumerate() {
             if b.prim == NO_HIT {

@@ -10,7 +10,7 @@ use glam::Vec4;
 /// `Children` with SSE (glam's `Vec4`), four rays at a time: each lane is
 /// `wide::hit_boxes_f32`'s arithmetic for its ray, operation for operation.
 #[inline(always)]
-pub(super) fn children_sse<const ANY_HIT: bool>(
+pub(super) fn children_sse<const ANY_HIT: bool, const AT_ORIGIN: bool>(
     node: &wide::Node4,
     soa: &Soa,
     mask: u32,
@@ -30,8 +30,16 @@ pub(super) fn children_sse<const ANY_HIT: bool>(
             }
             let slab = |axis: usize| {
                 let (o, inv) = (soa.o[axis].quad(h), soa.inv[axis].quad(h));
-                let t0 = (Vec4::splat(node.lo[axis][lane]) - o) * inv;
-                let t1 = (Vec4::splat(node.hi[axis][lane]) - o) * inv;
+                // x - 0 is x, to the bit: rays from the origin skip it.
+                let rel = |x: f32| {
+                    if AT_ORIGIN {
+                        Vec4::splat(x)
+                    } else {
+                        Vec4::splat(x) - o
+                    }
+                };
+                let t0 = rel(node.lo[axis][lane]) * inv;
+                let t1 = rel(node.hi[axis][lane]) * inv;
                 (t0.min(t1), t0.max(t1))
             };
             let (nx, fx) = slab(0);

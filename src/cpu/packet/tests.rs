@@ -124,11 +124,17 @@ fn avx_boxes_match_sse() {
         let camera = crate::camera::Camera::new(64, 48);
         let cpu = CpuScene::new(&scene, &bvh, &geometry, &camera, &CpuOptions::default());
         let mut next = uniform(23);
-        let mut passed = 0;
+        let (mut passed, mut origin_passed) = (0, 0);
         for p in 0..300 {
             let nodes = &cpu.wide.nodes;
+            // Every fifth packet from the origin, as primary rays are,
+            // for the tests that skip subtracting it.
+            let from_origin = p % 5 == 2;
             let rays: [Ray<f32>; WIDTH] = std::array::from_fn(|r| {
                 let mut o = Vec3::new(next(), next(), next()) * 4.0;
+                if from_origin {
+                    o = Vec3::ZERO;
+                }
                 let mut d = Vec3::new(next(), next(), next() - 1.0);
                 match (p + r) % 8 {
                     1 => d.x = 0.0,
@@ -136,7 +142,7 @@ fn avx_boxes_match_sse() {
                     3 if p % 16 == 3 => d = Vec3::NAN,
                     _ => {}
                 }
-                if p % 4 == 1 {
+                if p % 4 == 1 && !from_origin {
                     // On a box's faces: a ray leaving through a face
                     // meets its box at t_near = t_far = 0, which only
                     // `<=` passes.
@@ -164,16 +170,17 @@ fn avx_boxes_match_sse() {
             let mask = if p % 3 == 0 { 0x6d6d_6d6d & all } else { all };
             // Reused from node to node, as a traversal does.
             let [mut a, mut b, mut c, mut d, mut e, mut f] = [0; 6].map(|_| Children::NONE);
+            let mut g = Children::NONE;
             for node in &cpu.wide.nodes {
-                children_sse::<false>(node, &soa, mask, &best_t, &mut a);
+                children_sse::<false, false>(node, &soa, mask, &best_t, &mut a);
                 // SAFETY: `has_avx2` holds, checked above.
-                unsafe { children_avx2::<false>(node, &soa, mask, &best_t, &mut b) };
+                unsafe { children_avx2::<false, false>(node, &soa, mask, &best_t, &mut b) };
                 assert_eq!(a.hits, b.hits);
                 // The any-hit tests find the same rays in each box.
-                children_sse::<true>(node, &soa, mask, &best_t, &mut d);
+                children_sse::<true, false>(node, &soa, mask, &best_t, &mut d);
                 assert_eq!(d.hits, a.hits);
                 // SAFETY: as above.
-                unsafe { children_avx2::<true>(node, &soa, mask, &best_t, &mut c) };
+                unsafe { children_avx2::<true, false>(node, &soa, mask, &best_t, &mut c) };
                 assert_eq!(c.hits, a.hits);
                 // The closest-hit tests' entries, where a ray passed.
                 let same_entries = |x: &Children| {
@@ -191,20 +198,43 @@ fn avx_boxes_match_sse() {
                     }
                 };
                 same_entries(&b);
+                if from_origin {
+                    // Without the origin's subtraction: the same bits.
+                    children_sse::<false, true>(node, &soa, mask, &best_t, &mut g);
+                    assert_eq!(g.hits, a.hits);
+                    same_entries(&g);
+                    // SAFETY: `has_avx2` holds, checked above.
+                    unsafe { children_avx2::<false, true>(node, &soa, mask, &best_t, &mut g) };
+                    assert_eq!(g.hits, a.hits);
+                    same_entries(&g);
+                    origin_passed += a.hits.iter().map(|h| h.count_ones()).sum::<u32>();
+                }
                 if avx512 {
                     // SAFETY: `has_avx512` holds, checked above.
                     unsafe {
-                        children_avx512::<false>(node, &soa, mask, &best_t, &mut e);
-                        children_avx512::<true>(node, &soa, mask, &best_t, &mut f);
+                        children_avx512::<false, false>(node, &soa, mask, &best_t, &mut e);
+                        children_avx512::<true, false>(node, &soa, mask, &best_t, &mut f);
                     }
                     assert_eq!(e.hits, a.hits);
                     assert_eq!(f.hits, a.hits);
                     same_entries(&e);
+                    if from_origin {
+                        // SAFETY: as above.
+                        unsafe {
+                            children_avx512::<false, true>(node, &soa, mask, &best_t, &mut g);
+                        }
+                        assert_eq!(g.hits, a.hits);
+                        same_entries(&g);
+                    }
                 }
                 passed += a.hits.iter().map(|h| h.count_ones()).sum::<u32>();
             }
         }
         assert!(passed > 1000, "{passed} box hits");
+        assert!(
+            origin_passed > 200,
+            "{origin_passed} box hits from the origin"
+        );
     }
 }
 
@@ -269,12 +299,13 @@ fn sphere_rays_match_the_scalar_test() {
 #[cfg(target_arch = "x86_64")]
 #[test]
 fn octet_triangle_test_matches_the_block_test() {
+    const ORIGIN_MIN: u32 = 5_000;
     if !crate::cpu::simd::has_avx2() {
         skipped("octet_triangle_test_matches_the_block_test: this CPU has no AVX2, so the octet test never runs");
         return;
     }
     let mut next = uniform(41);
-    let (mut hits, mut misses, mut octets, mut sixteens) = (0, 0, 0, 0);
+    let (mut hits, mut misses, mut octets, mut sixteens, mut origin_hits) = (0, 0, 0, 0, 0);
     for b in 0..3000 {
         let mut corners = [[Vec3::ZERO; 3]; 4];
         for j in 0..4 {
@@ -301,6 +332,9 @@ fn octet_triangle_test_matches_the_block_test() {
         // Rays aimed at the triangles, mostly along one axis so that
         // octets share an axis order; every few packets a mixed one.
         let axis = b % 3;
+        // Every fourth block's rays from the origin, as primary rays are,
+        // for the tests that skip subtracting it.
+        let from_origin = b % 4 == 3;
         let rays: [Ray<f32>; WIDTH] = std::array::from_fn(|r| {
             let tri = corners[r % used];
             let (u, v) = (next().abs(), next().abs());
@@ -311,6 +345,9 @@ fn octet_triangle_test_matches_the_block_test() {
                 d = Vec3::new(next(), next(), next());
             }
             let o = target - d * (2.0 + next().abs());
+            if from_origin {
+                return make_ray::<f32>(Vec3::ZERO, target.normalize(), 0.0);
+            }
             make_ray::<f32>(o, d.normalize(), 0.0)
         });
         let soa = Soa::new(&rays);
@@ -328,7 +365,13 @@ fn octet_triangle_test_matches_the_block_test() {
             let m8 = (next().to_bits() >> 3 | 0x11) & 255;
             let (mut best, mut best_t) = no_hits(&limit);
             // SAFETY: `has_avx2` holds, checked above.
-            let found = unsafe { hit_block_octet(&block, &soa, k, g, m8, &mut best, &mut best_t) };
+            let found = unsafe {
+                if from_origin {
+                    hit_block_octet::<true>(&block, &soa, k, g, m8, &mut best, &mut best_t)
+                } else {
+                    hit_block_octet::<false>(&block, &soa, k, g, m8, &mut best, &mut best_t)
+                }
+            };
             for i in 0..8 {
                 let r = 8 * g + i;
                 let want = if m8 & 1 << i == 0 {
@@ -346,6 +389,7 @@ fn octet_triangle_test_matches_the_block_test() {
                 match want {
                     Some((j, t, b1, b2)) => {
                         hits += 1;
+                        origin_hits += u32::from(from_origin);
                         let h = best[r];
                         assert_eq!(h.prim, block.prims[j], "block {b} ray {r}");
                         let got = [h.t, h.b1, h.b2, best_t.0[r]].map(f32::to_bits);
@@ -365,7 +409,25 @@ fn octet_triangle_test_matches_the_block_test() {
                 let prim = 10 + j as u32;
                 // SAFETY: `has_avx2` holds, checked above.
                 let found = unsafe {
-                    hit_triangle_octet(tri, prim, &soa, (k, g, m8), &mut best, &mut best_t)
+                    if from_origin {
+                        hit_triangle_octet::<true>(
+                            tri,
+                            prim,
+                            &soa,
+                            (k, g, m8),
+                            &mut best,
+                            &mut best_t,
+                        )
+                    } else {
+                        hit_triangle_octet::<false>(
+                            tri,
+                            prim,
+                            &soa,
+                            (k, g, m8),
+                            &mut best,
+                            &mut best_t,
+                        )
+                    }
                 };
                 for i in 0..8 {
                     let r = 8 * g + i;
@@ -387,8 +449,8 @@ fn octet_triangle_test_matches_the_block_test() {
         }
     }
     assert!(
-        hits > 20_000 && misses > 20_000 && octets > 8_000,
-        "{hits} hits, {misses} misses, {octets} octets"
+        hits > 20_000 && misses > 20_000 && octets > 8_000 && origin_hits > ORIGIN_MIN,
+        "{hits} hits ({origin_hits} from the origin), {misses} misses, {octets} octets"
     );
     if crate::cpu::simd::has_avx512() {
         assert!(sixteens > 2_000, "{sixteens} sixteens");
@@ -425,7 +487,19 @@ fn sixteens_match_the_block_test(
         let m16 = (next().to_bits() >> 3 | 0x1001) & 0xffff;
         let (mut best, mut best_t) = no_hits(limit);
         // SAFETY: `has_avx512` holds, checked above.
-        let found = unsafe { hit_block_sixteen(block, soa, k, h, m16, &mut best, &mut best_t) };
+        // Rays from the origin (as `octet_triangle_test_matches_the_block_test`
+        // makes every fourth block's) also through the test that skips
+        // subtracting it.
+        let from_origin = rays
+            .iter()
+            .all(|r| r.origin.to_array().map(f32::to_bits) == [0; 3]);
+        let found = unsafe {
+            if from_origin {
+                hit_block_sixteen::<true>(block, soa, k, h, m16, &mut best, &mut best_t)
+            } else {
+                hit_block_sixteen::<false>(block, soa, k, h, m16, &mut best, &mut best_t)
+            }
+        };
         for i in 0..16 {
             let r = 16 * h + i;
             let ray = &rays[r];

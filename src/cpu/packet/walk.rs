@@ -31,34 +31,46 @@ pub fn traverse(
         soa: &soa,
         active,
         t_max,
+        at_origin: false,
     };
     run(scene, query, any_hit)
 }
 
-/// `traverse` for the rays `make_rays` made, already in lanes.
+/// `traverse` for the rays `make_rays` made, already in lanes; when
+/// `at_origin`, every ray's origin is (+0, +0, +0).
 pub(super) fn traverse_packet(
     scene: &CpuScene<f32>,
     soa: &Soa,
     active: u32,
     t_max: f32,
     any_hit: bool,
+    at_origin: bool,
 ) -> [Hit<f32>; WIDTH] {
-    let query = Query { soa, active, t_max };
+    debug_assert!(!at_origin || soa.o.iter().all(|o| o.0.iter().all(|x| x.to_bits() == 0)));
+    let query = Query {
+        soa,
+        active,
+        t_max,
+        at_origin,
+    };
     run(scene, query, any_hit)
 }
 
 /// `query` through the traversal compiled for the widest instructions
 /// the CPU has.
 fn run(scene: &CpuScene<f32>, query: Query, any_hit: bool) -> [Hit<f32>; WIDTH] {
+    // Rays from the origin skip subtracting it (closest hits only: the
+    // packets that start there are the primary rays).
+    let at_origin = query.at_origin && !any_hit;
     #[cfg(target_arch = "x86_64")]
     if crate::cpu::simd::has_avx512() {
         // SAFETY: the CPU has AVX-512F and the bit instructions
         // (`has_avx512`), checked just above.
         return unsafe {
-            if any_hit {
-                traverse_avx512::<true>(scene, query)
-            } else {
-                traverse_avx512::<false>(scene, query)
+            match (any_hit, at_origin) {
+                (true, _) => traverse_avx512::<true, false>(scene, query),
+                (false, true) => traverse_avx512::<false, true>(scene, query),
+                (false, false) => traverse_avx512::<false, false>(scene, query),
             }
         };
     }
@@ -67,17 +79,17 @@ fn run(scene: &CpuScene<f32>, query: Query, any_hit: bool) -> [Hit<f32>; WIDTH] 
         // SAFETY: the CPU has AVX2 and the bit instructions (`has_avx2`),
         // checked just above.
         return unsafe {
-            if any_hit {
-                traverse_avx2::<true>(scene, query)
-            } else {
-                traverse_avx2::<false>(scene, query)
+            match (any_hit, at_origin) {
+                (true, _) => traverse_avx2::<true, false>(scene, query),
+                (false, true) => traverse_avx2::<false, true>(scene, query),
+                (false, false) => traverse_avx2::<false, false>(scene, query),
             }
         };
     }
-    if any_hit {
-        traverse_with::<SSE, true>(scene, query)
-    } else {
-        traverse_with::<SSE, false>(scene, query)
+    match (any_hit, at_origin) {
+        (true, _) => traverse_with::<SSE, true, false>(scene, query),
+        (false, true) => traverse_with::<SSE, false, true>(scene, query),
+        (false, false) => traverse_with::<SSE, false, false>(scene, query),
     }
 }
 
@@ -89,22 +101,22 @@ pub(super) const AVX512: u8 = 2;
 /// `traverse_with` compiled for AVX2, so its box tests inline.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2,bmi1,bmi2,lzcnt,popcnt")]
-pub(super) fn traverse_avx2<const ANY_HIT: bool>(
+pub(super) fn traverse_avx2<const ANY_HIT: bool, const AT_ORIGIN: bool>(
     scene: &CpuScene<f32>,
     query: Query,
 ) -> [Hit<f32>; WIDTH] {
-    traverse_with::<AVX2, ANY_HIT>(scene, query)
+    traverse_with::<AVX2, ANY_HIT, AT_ORIGIN>(scene, query)
 }
 
 /// `traverse_with` compiled for AVX-512: its box tests take sixteen rays a
 /// register, and its leaf tests too where two octets share an axis order.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,bmi1,bmi2,lzcnt,popcnt")]
-pub(super) fn traverse_avx512<const ANY_HIT: bool>(
+pub(super) fn traverse_avx512<const ANY_HIT: bool, const AT_ORIGIN: bool>(
     scene: &CpuScene<f32>,
     query: Query,
 ) -> [Hit<f32>; WIDTH] {
-    traverse_with::<AVX512, ANY_HIT>(scene, query)
+    traverse_with::<AVX512, ANY_HIT, AT_ORIGIN>(scene, query)
 }
 
 /// `traverse`, its box tests 8 rays at a time with AVX2 when `SIMD` is
@@ -115,12 +127,19 @@ pub(super) fn traverse_avx512<const ANY_HIT: bool>(
 /// no box it passed can later lie beyond its limit, and whether it is
 /// blocked does not depend on the order it meets leaves in: there the
 /// entry t that order and dropping need is not computed.
+///
+/// `AT_ORIGIN` (every ray leaves from (+0, +0, +0), as primary rays do):
+/// the box and triangle tests skip subtracting the origin, since x - 0
+/// is x to the bit. 2M grid, callgrind, one render: 1,122.8 M -> 1,090.9
+/// M instructions.
 #[inline(always)]
-pub(super) fn traverse_with<const SIMD: u8, const ANY_HIT: bool>(
+pub(super) fn traverse_with<const SIMD: u8, const ANY_HIT: bool, const AT_ORIGIN: bool>(
     scene: &CpuScene<f32>,
     query: Query,
 ) -> [Hit<f32>; WIDTH] {
-    let Query { soa, active, t_max } = query;
+    let Query {
+        soa, active, t_max, ..
+    } = query;
     let mut best = [Hit {
         t: t_max,
         prim: NO_HIT,
@@ -194,14 +213,14 @@ pub(super) fn traverse_with<const SIMD: u8, const ANY_HIT: bool>(
         // where `has_avx512` holds, and AVX2 only in `traverse_avx2`, which
         // runs only where `has_avx2` does.
         if SIMD == AVX512 {
-            unsafe { children_avx512::<ANY_HIT>(node, soa, mask, &best_t, &mut kids) }
+            unsafe { children_avx512::<ANY_HIT, AT_ORIGIN>(node, soa, mask, &best_t, &mut kids) }
         } else if SIMD == AVX2 {
-            unsafe { children_avx2::<ANY_HIT>(node, soa, mask, &best_t, &mut kids) }
+            unsafe { children_avx2::<ANY_HIT, AT_ORIGIN>(node, soa, mask, &best_t, &mut kids) }
         } else {
-            children_sse::<ANY_HIT>(node, soa, mask, &best_t, &mut kids)
+            children_sse::<ANY_HIT, AT_ORIGIN>(node, soa, mask, &best_t, &mut kids)
         };
         #[cfg(not(target_arch = "x86_64"))]
-        children_sse::<ANY_HIT>(node, soa, mask, &best_t, &mut kids);
+        children_sse::<ANY_HIT, AT_ORIGIN>(node, soa, mask, &best_t, &mut kids);
         let Children {
             hits,
             ref near,
@@ -249,7 +268,7 @@ pub(super) fn traverse_with<const SIMD: u8, const ANY_HIT: bool>(
                 best_t: &mut best_t,
                 live: &mut live,
             };
-            test_leaf::<SIMD, ANY_HIT>(scene, index, rays_in, simd_leaves, packet);
+            test_leaf::<SIMD, ANY_HIT, AT_ORIGIN>(scene, index, rays_in, simd_leaves, packet);
             if live == 0 {
                 return best;
             }
@@ -328,7 +347,7 @@ struct Packet<'a> {
 /// where they share an axis order, else ray by ray), each ray alone where
 /// not `simd_leaves`, else primitive by primitive for all of them.
 #[inline(always)]
-fn test_leaf<const SIMD: u8, const ANY_HIT: bool>(
+fn test_leaf<const SIMD: u8, const ANY_HIT: bool, const AT_ORIGIN: bool>(
     scene: &CpuScene<f32>,
     index: usize,
     mut rays_in: u32,
@@ -359,8 +378,9 @@ fn test_leaf<const SIMD: u8, const ANY_HIT: bool>(
                 soa.take_sixteens(&mut rays_in, |h, k, m16| {
                     // SAFETY: SIMD is AVX512 only in `traverse_avx512`,
                     // which runs only where `has_avx512` holds.
-                    let found =
-                        unsafe { hit_block_sixteen(leaf, soa, k, h, m16, p.best, p.best_t) };
+                    let found = unsafe {
+                        hit_block_sixteen::<AT_ORIGIN>(leaf, soa, k, h, m16, p.best, p.best_t)
+                    };
                     if ANY_HIT {
                         *p.live &= !found;
                     }
@@ -370,7 +390,8 @@ fn test_leaf<const SIMD: u8, const ANY_HIT: bool>(
                 // SAFETY: SIMD is AVX2 or more only in
                 // `traverse_avx2` and `traverse_avx512`, which run
                 // only where `has_avx2` holds (`has_avx512` implies it).
-                let found = unsafe { hit_block_octet(leaf, soa, k, g, m8, p.best, p.best_t) };
+                let found =
+                    unsafe { hit_block_octet::<AT_ORIGIN>(leaf, soa, k, g, m8, p.best, p.best_t) };
                 if ANY_HIT {
                     *p.live &= !found;
                 }
@@ -433,7 +454,14 @@ fn test_leaf<const SIMD: u8, const ANY_HIT: bool>(
                         // `traverse_avx2` and `traverse_avx512`, which run
                         // only where `has_avx2` holds.
                         let found = unsafe {
-                            hit_triangle_octet(tri, prim, soa, (k, g, m8), p.best, p.best_t)
+                            hit_triangle_octet::<AT_ORIGIN>(
+                                tri,
+                                prim,
+                                soa,
+                                (k, g, m8),
+                                p.best,
+                                p.best_t,
+                            )
                         };
                         if ANY_HIT {
                             *p.live &= !found;
