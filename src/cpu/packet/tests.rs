@@ -407,28 +407,13 @@ fn octet_triangle_test_matches_the_block_test() {
             for (j, tri) in corners.iter().enumerate().take(used) {
                 let (mut best, mut best_t) = no_hits(&limit);
                 let prim = 10 + j as u32;
-                // SAFETY: `has_avx2` holds, checked above.
-                let found = unsafe {
-                    if from_origin {
-                        hit_triangle_octet::<true>(
-                            tri,
-                            prim,
-                            &soa,
-                            (k, g, m8),
-                            &mut best,
-                            &mut best_t,
-                        )
-                    } else {
-                        hit_triangle_octet::<false>(
-                            tri,
-                            prim,
-                            &soa,
-                            (k, g, m8),
-                            &mut best,
-                            &mut best_t,
-                        )
-                    }
+                let test = if from_origin {
+                    hit_triangle_octet::<true>
+                } else {
+                    hit_triangle_octet::<false>
                 };
+                // SAFETY: `has_avx2` holds, checked above.
+                let found = unsafe { test(tri, prim, &soa, (k, g, m8), &mut best, &mut best_t) };
                 for i in 0..8 {
                     let r = 8 * g + i;
                     let (t, b1, b2) = hit_triangle(&rays[r], tri, limit[r]);
