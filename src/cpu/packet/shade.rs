@@ -168,12 +168,9 @@ fn colours_with(
     }
     let mut colour = ZEROS;
     for (a, colour) in colour.iter_mut().enumerate() {
+        let (on, off) = (scene.ambient[a], scene.background[a]);
         for i in 0..WIDTH {
-            colour.0[i] = if lit >> i & 1 != 0 {
-                scene.ambient[a]
-            } else {
-                scene.background[a]
-            };
+            colour.0[i] = if lit & (1 << i) != 0 { on } else { off };
         }
     }
     let key = |i: usize| centre_key(scene, pixels[i][0], pixels[i][1]);
@@ -239,14 +236,28 @@ fn colours_with(
         fill_terms(points, &f, needed & clear & !dark, light.color, &mut terms);
         add_terms(&mut colour, &terms, needed & clear);
     }
+    // `clamp01` (glam's `clamp`: a max with 0, then a min with 1, as
+    // x86's `maxps` and `minps` order them) in lanes; clamping twice is
+    // clamping once, so a pixel without a reflection is its lane.
+    let mut clamped = colour;
+    for channel in &mut clamped {
+        for x in &mut channel.0 {
+            let above = if *x > 0.0 { *x } else { 0.0 };
+            *x = if above < 1.0 { above } else { 1.0 };
+        }
+    }
     for (i, px) in out.iter_mut().enumerate().take(n) {
-        let local = f32::clamp01(lane(&colour, i));
-        let c = if lit & (1 << i) != 0 && scene.reflect_depth > 0 {
-            reflect_path(scene, &primary.ray(i), hits[i], local, &key(i))
-        } else {
-            local
-        };
-        *px = f32::v3_to_f32(f32::clamp01(c));
+        *px = [clamped[0].0[i], clamped[1].0[i], clamped[2].0[i]];
+    }
+    if scene.reflect_depth > 0 {
+        let mut each = lit & (u32::MAX >> (32 - n));
+        while each != 0 {
+            let i = each.trailing_zeros() as usize;
+            each &= each - 1;
+            let local = lane(&clamped, i);
+            let c = reflect_path(scene, &primary.ray(i), hits[i], local, &key(i));
+            out[i] = f32::v3_to_f32(f32::clamp01(c));
+        }
     }
     out
 }
