@@ -371,3 +371,49 @@ fn untraced_shadow_rays_could_not_change_a_colour() {
     }
     all_widths(&Check);
 }
+
+/// The lanes' clamp is `Real::clamp01`'s to the bit: NaN, both zeros,
+/// infinities, subnormals, 1 and its neighbours, and ordinary values.
+#[test]
+fn lane_clamp_is_the_generic_one_to_the_bit() {
+    struct Check;
+    impl AtEveryWidth for Check {
+        #[inline(always)]
+        fn run(&self) {
+            use crate::cpu::Real;
+            let edges = [
+                f32::NAN,
+                -f32::NAN,
+                0.0,
+                -0.0,
+                f32::INFINITY,
+                f32::NEG_INFINITY,
+                f32::MIN_POSITIVE / 2.0,
+                -f32::MIN_POSITIVE / 2.0,
+                1.0,
+                1.0 + f32::EPSILON,
+                1.0 - f32::EPSILON / 2.0,
+            ];
+            let mut next = uniform(33);
+            for round in 0..200 {
+                let mut colour = ZEROS;
+                for i in 0..WIDTH {
+                    for a in 0..3 {
+                        colour[a].0[i] = match (round + 3 * i + a) % 3 {
+                            0 => edges[(round + i + a) % edges.len()],
+                            _ => next() * 2.0,
+                        };
+                    }
+                }
+                let want: Vec<[u32; 3]> = (0..WIDTH)
+                    .map(|i| bits(f32::clamp01(lane(&colour, i))))
+                    .collect();
+                clamp01(&mut colour);
+                for (i, want) in want.iter().enumerate() {
+                    assert_eq!(&bits(lane(&colour, i)), want, "round {round} lane {i}");
+                }
+            }
+        }
+    }
+    all_widths(&Check);
+}

@@ -381,6 +381,19 @@ pub(super) fn changed_by(colour: &V3s, terms: &V3s, lit: u32) -> u32 {
     changed & lit
 }
 
+/// `Real::clamp01` of every lane: glam's `Vec3::clamp`, a max with 0 and
+/// then a min with 1, each the select it is written as (so NaN and -0
+/// fall as there), whole registers at a time.
+#[inline(always)]
+pub(super) fn clamp01(colour: &mut V3s) {
+    for channel in colour {
+        for x in &mut channel.0 {
+            let above = if *x > 0.0 { *x } else { 0.0 };
+            *x = if above < 1.0 { above } else { 1.0 };
+        }
+    }
+}
+
 /// Adds `terms` to `colour` in the lanes of `on`.
 #[inline(always)]
 pub(super) fn add_terms(colour: &mut V3s, terms: &V3s, on: u32) {

@@ -5,8 +5,8 @@
 
 use super::lanes::*;
 use super::points::{
-    add_terms, changed_by, facing, fill_terms, no_highlight, shadow_rays, triangle_points, Corners,
-    Points,
+    add_terms, changed_by, clamp01, facing, fill_terms, no_highlight, shadow_rays, triangle_points,
+    Corners, Points,
 };
 use super::walk::traverse_packet;
 use crate::cpu::trace::{
@@ -236,25 +236,18 @@ fn colours_with(
         fill_terms(points, &f, needed & clear & !dark, light.color, &mut terms);
         add_terms(&mut colour, &terms, needed & clear);
     }
-    // `clamp01` (glam's `clamp`: a max with 0, then a min with 1, as
-    // x86's `maxps` and `minps` order them) in lanes; clamping twice is
-    // clamping once, so a pixel without a reflection is its lane.
-    let mut clamped = colour;
-    for channel in &mut clamped {
-        for x in &mut channel.0 {
-            let above = if *x > 0.0 { *x } else { 0.0 };
-            *x = if above < 1.0 { above } else { 1.0 };
-        }
-    }
+    // Clamping twice is clamping once: a pixel without a reflection is
+    // its lane.
+    clamp01(&mut colour);
     for (i, px) in out.iter_mut().enumerate().take(n) {
-        *px = [clamped[0].0[i], clamped[1].0[i], clamped[2].0[i]];
+        *px = [colour[0].0[i], colour[1].0[i], colour[2].0[i]];
     }
     if scene.reflect_depth > 0 {
-        let mut each = lit & (u32::MAX >> (32 - n));
+        let mut each = lit;
         while each != 0 {
             let i = each.trailing_zeros() as usize;
             each &= each - 1;
-            let local = lane(&clamped, i);
+            let local = lane(&colour, i);
             let c = reflect_path(scene, &primary.ray(i), hits[i], local, &key(i));
             out[i] = f32::v3_to_f32(f32::clamp01(c));
         }
