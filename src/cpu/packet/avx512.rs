@@ -12,8 +12,10 @@ use crate::cpu::Real;
 /// operations lane for lane as `children_avx2` (`vminps` and `vmaxps` treat
 /// NaNs alike at every width, and `<=` is the same ordered compare, here
 /// into a mask register), so each ray gets the same answer to the bit. The
-/// nearest entry is a masked reduction over rays that passed, whose entries
-/// are never NaN, so its order does not matter.
+/// nearest entry is a masked minimum over rays that passed, whose entries
+/// are never NaN, so its order does not matter: folded over the sixteens
+/// and reduced once for all four children, with no branch on a box's hit
+/// (per child and sixteen, a branch and a reduction before).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f,bmi1,bmi2,lzcnt,popcnt")]
 #[inline]
@@ -25,13 +27,18 @@ pub(super) fn children_avx512<const ANY_HIT: bool, const AT_ORIGIN: bool>(
     out: &mut Children,
 ) {
     use std::arch::x86_64::*;
-    out.reset();
     // SAFETY: `Lanes` is 64-byte aligned and holds `WIDTH` f32, a multiple
     // of sixteen, as the aligned loads and stores at every sixteenth one
     // need; the rest is arithmetic on registers.
     unsafe {
         let scale = _mm512_set1_ps(f32::BOX_T_SCALE);
         let zero = _mm512_setzero_ps();
+        let inf = _mm512_set1_ps(f32::INFINITY);
+        // Per child, the entries of the rays that hit it (the others at
+        // +inf), folded over the sixteens by lane and across lanes once at
+        // the end, as `children_avx2`'s.
+        let mut entries = [inf; 4];
+        let mut hits = [0u32; 4];
         for g in 0..WIDTH / 16 {
             let m16 = (mask >> (16 * g) & 0xffff) as u16;
             if m16 == 0 {
@@ -41,6 +48,7 @@ pub(super) fn children_avx512<const ANY_HIT: bool, const AT_ORIGIN: bool>(
             let o = [load(&soa.o[0]), load(&soa.o[1]), load(&soa.o[2])];
             let inv = [load(&soa.inv[0]), load(&soa.inv[1]), load(&soa.inv[2])];
             let bt = load(best_t);
+            #[allow(clippy::needless_range_loop)]
             for lane in 0..4 {
                 if node.child[lane] == wide::EMPTY {
                     continue;
@@ -50,18 +58,50 @@ pub(super) fn children_avx512<const ANY_HIT: bool, const AT_ORIGIN: bool>(
                     _mm512_set1_ps, _mm512_sub_ps, _mm512_mul_ps, _mm512_min_ps, _mm512_max_ps
                 );
                 let hit = _mm512_mask_cmp_ps_mask::<_CMP_LE_OS>(m16, t_near, t_far);
-                if hit == 0 {
-                    continue;
-                }
-                out.hits[lane] |= (hit as u32) << (16 * g);
+                // No branch on `hit`, as in `children_avx2`.
+                hits[lane] |= u32::from(hit) << (16 * g);
                 if !ANY_HIT {
                     _mm512_store_ps(out.near[lane].0.as_mut_ptr().add(16 * g), t_near);
-                    let m = _mm512_mask_reduce_min_ps(hit, t_near);
-                    out.nearest[lane] = out.nearest[lane].min(m);
+                    entries[lane] = _mm512_mask_min_ps(entries[lane], hit, entries[lane], t_near);
                 }
             }
         }
+        out.hits = hits;
+        if !ANY_HIT {
+            out.nearest = min_across_four(entries);
+        } else {
+            out.nearest = [f32::INFINITY; 4];
+        }
     }
+}
+
+/// The least lane of each of four registers (none NaN), folded together:
+/// the four children's halves, then quarters, then within each quarter.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,bmi1,bmi2,lzcnt,popcnt")]
+#[inline]
+fn min_across_four(v: [std::arch::x86_64::__m512; 4]) -> [f32; 4] {
+    use std::arch::x86_64::*;
+    // Quarters (q0 q1 of a, q0 q1 of b) against (q2 q3 of a, q2 q3 of b).
+    let halves = |a, b| {
+        _mm512_min_ps(
+            _mm512_shuffle_f32x4::<0b01_00_01_00>(a, b),
+            _mm512_shuffle_f32x4::<0b11_10_11_10>(a, b),
+        )
+    };
+    let m01 = halves(v[0], v[1]);
+    let m23 = halves(v[2], v[3]);
+    // Each quarter one child's four lanes: v0, v1, v2, v3.
+    let m = _mm512_min_ps(
+        _mm512_shuffle_f32x4::<0b10_00_10_00>(m01, m23),
+        _mm512_shuffle_f32x4::<0b11_01_11_01>(m01, m23),
+    );
+    let m = _mm512_min_ps(m, _mm512_permute_ps::<0b01_00_11_10>(m));
+    let m = _mm512_min_ps(m, _mm512_permute_ps::<0b10_11_00_01>(m));
+    let mut lanes = [0.0f32; 16];
+    // SAFETY: `lanes` holds sixteen f32, written unaligned.
+    unsafe { _mm512_storeu_ps(lanes.as_mut_ptr(), m) };
+    [lanes[0], lanes[4], lanes[8], lanes[12]]
 }
 
 /// `avx2::hit_block_octet` sixteen rays a register: a leaf block's
