@@ -153,14 +153,22 @@ impl Bands<'_> {
         tally
             .done
             .store((skipped / row_len) as u64, Ordering::Relaxed);
-        ordered.into_par_iter().for_each(|(y0, band)| {
-            let n = (band.len() / row_len) as u64;
-            if !self.keep.stopped() {
-                tally.band(|| f(scene, y0, band));
-            }
-            let finished = tally.done.fetch_add(n, Ordering::Relaxed) + n;
-            (self.progress)(finished, u64::from(h));
-        });
+        // A band a job: by default rayon hands each thread a few long
+        // stretches, and a thread done with its own cannot take a band from
+        // a stretch under way (2M grid, 2 threads: one thread idle at the
+        // end for 0.5-4 ms of a 78 ms render, 11-13 ms where another
+        // process took a core, against at most one band's 2.5 ms now).
+        ordered
+            .into_par_iter()
+            .with_max_len(1)
+            .for_each(|(y0, band)| {
+                let n = (band.len() / row_len) as u64;
+                if !self.keep.stopped() {
+                    tally.band(|| f(scene, y0, band));
+                }
+                let finished = tally.done.fetch_add(n, Ordering::Relaxed) + n;
+                (self.progress)(finished, u64::from(h));
+            });
         tally.work()
     }
 }
