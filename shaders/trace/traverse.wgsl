@@ -1,6 +1,6 @@
 // shaders/trace/traverse.wgsl: the wide tree's traversal for the closest
 // hit or any blocker, with light skips and the grazing band. CPU twin:
-// src/cpu/trace/hit.rs.
+// src/cpu/trace/traverse.rs.
 
 // The run of `skips` (first, count) for the shadow ray being traced, set by
 // point_term (the only caller of occluder); read only by any-hit traversal.

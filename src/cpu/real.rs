@@ -151,6 +151,15 @@ pub trait Real:
     /// does a collapsed tree get leaves it may be called on (`LeafBlock::simd`).
     const SIMD_LEAVES: bool = false;
 
+    /// For a box's entry t (+0 or more, never NaN): bits that order as the
+    /// value does, in 32 bits, where the precision has them, so that a
+    /// node's hit lanes sort without branches (`trace::hit`'s
+    /// `nearest_last`). None for f64, whose 63 leave no room for a lane.
+    #[inline(always)]
+    fn entry_key(self) -> Option<u64> {
+        None
+    }
+
     /// `wide::hit_block_f32` where `SIMD_LEAVES`; never called otherwise.
     fn hit_block(
         _ray: &Ray<Self>,
@@ -312,6 +321,10 @@ impl_real!(
         super::simd::hit_boxes_f32(ray.origin, ray.inv_dir, node, t_max, Self::BOX_T_SCALE)
     },
     const SIMD_LEAVES: bool = true;,
+    #[inline(always)]
+    fn entry_key(self) -> Option<u64> {
+        Some(u64::from(self.to_bits()))
+    },
     #[inline(always)]
     fn hit_block(ray: &Ray<f32>, block: &LeafBlock, t_max: f32) -> Option<(usize, f32, f32, f32)> {
         super::simd::hit_block_f32(ray.origin, ray.k, ray.shear, block, t_max)

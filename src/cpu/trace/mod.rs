@@ -5,8 +5,10 @@
 mod hit;
 mod scene;
 mod shade;
+mod traverse;
 
 pub use crate::cpu::real::Ray;
 pub use hit::*;
 pub use scene::*;
 pub use shade::*;
+pub use traverse::*;

@@ -15,6 +15,7 @@ use crate::scene::Sampler;
 
 use super::hit::*;
 use super::scene::*;
+use super::traverse::*;
 use crate::cpu::real::Ray;
 
 /// What shading needs of `hit`, a hit of `ray`: the point, its normals and
