@@ -232,17 +232,22 @@ pub(super) fn traverse_with<const SIMD: u8, const ANY_HIT: bool, const AT_ORIGIN
             hit_lanes_nearest_first(hits, nearest)
         };
         // Nodes onto the stack first, farthest first, so the nearest is
-        // next, and each starts loading with its own leaf blocks: the next
-        // node arrives while this one's leaves are tested, and its leaves
-        // with it (this node's were started when it was pushed). The
-        // leaves cannot see the stack, so the order of work is as if they
-        // came first.
+        // next, and each starts loading with its own leaf blocks, nearest
+        // first (the loads queue behind one another; 2M grid, thread CPU
+        // 146.3-147.6 -> 143.0-145.5 ms): the next node arrives while this
+        // one's leaves are tested, and its leaves with it (this node's
+        // were started when it was pushed). The leaves cannot see the
+        // stack, so the order of work is as if they came first.
         for &lane in order[..n].iter().rev() {
             let child = node.child[lane];
             if child & wide::LEAF == 0 {
                 // Indexed with a bounds check: `wide::STACK` bounds the depth.
                 stack[len] = std::mem::MaybeUninit::new((child, hits[lane], nearest[lane]));
                 len += 1;
+            }
+        }
+        for &lane in &order[..n] {
+            if node.child[lane] & wide::LEAF == 0 {
                 prefetch_child(scene.wide, node, lane);
             }
         }
