@@ -152,7 +152,7 @@ pub(super) fn hit_block_sixteen<const AT_ORIGIN: bool>(
             if lanes & 1 << j == 0 {
                 continue;
             }
-            let at = |corner: usize, axis: usize| block.p[[kx, ky, kz][axis]][corner][j];
+            let at = |corner: usize, axis: usize| block.p[[kx, ky, kz][axis]][corner].as_ref()[j];
             let (hit, t_scaled, det, v, w) = crossing!(
                 [ox, oy, oz], [s0, s1, s2], at, t_max, AT_ORIGIN;
                 _mm512_set1_ps, _mm512_sub_ps, _mm512_mul_ps, _mm512_add_ps, zero,

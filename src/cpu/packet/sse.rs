@@ -38,8 +38,8 @@ pub(super) fn children_sse<const ANY_HIT: bool, const AT_ORIGIN: bool>(
                         Vec4::splat(x) - o
                     }
                 };
-                let t0 = rel(node.lo[axis][lane]) * inv;
-                let t1 = rel(node.hi[axis][lane]) * inv;
+                let t0 = rel(node.lo[axis].as_ref()[lane]) * inv;
+                let t1 = rel(node.hi[axis].as_ref()[lane]) * inv;
                 (t0.min(t1), t0.max(t1))
             };
             let (nx, fx) = slab(0);
