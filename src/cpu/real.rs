@@ -153,7 +153,7 @@ pub trait Real:
 
     /// For a box's entry t (+0 or more, never NaN): bits that order as the
     /// value does, in 32 bits, where the precision has them, so that a
-    /// node's hit lanes sort without branches (`trace::hit`'s
+    /// node's hit lanes sort without branches (`trace::traverse`'s
     /// `nearest_last`). None for f64, whose 63 leave no room for a lane.
     #[inline(always)]
     fn entry_key(self) -> Option<u64> {
