@@ -42,6 +42,25 @@ pub(crate) fn hit_leaf<R: Real>(
     false
 }
 
+/// For a sphere through the light a shadow ray ends at (`skip`): the crossing
+/// that is not the light's own, when it lies in (0, 1 - TANGENT_BAND), else
+/// T_INF (the shader's `hit_sphere_through_end`).
+pub fn hit_sphere_through_end<R: Real>(ray: &Ray<R>, s: &Sphere<R>, band: R) -> R {
+    let [t0, t1] = sphere_roots(ray, s, band);
+    // The root nearer 1 is the light's own (a miss gives T_INF either way).
+    let other = if (t0 - R::ONE).abs() > (t1 - R::ONE).abs() {
+        t0
+    } else {
+        t1
+    };
+    if other > R::ZERO && other < R::ONE - R::from_f64(crate::bvh::lights_on_surfaces::TANGENT_BAND)
+    {
+        other
+    } else {
+        R::T_INF
+    }
+}
+
 /// The primitive `prim` (a reference): true when `any_hit` and it blocks,
 /// so the traversal can stop. The shader's `hit_prim`, which its traversal
 /// calls for every reference of a node's hit leaves in one loop.
