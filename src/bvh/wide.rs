@@ -95,6 +95,9 @@ pub struct WideBvh {
     pub leaves: Vec<LeafBlock>,
     /// Per leaf, its primitive references.
     pub spans: Vec<LeafSpan>,
+    /// Per node, the binary node each lane took its box from (`EMPTY`
+    /// for an unused lane): what `refit` reads the boxes from again.
+    pub sources: Vec<[u32; 4]>,
 }
 
 impl LeafBlock {
@@ -188,9 +191,9 @@ pub const STACK: usize = 3 * BVH_MAX_DEPTH as usize + 4;
 /// for an empty tree. `corners` gives a primitive reference's triangle in
 /// f32, None for a sphere (or always None where leaves are not tested in
 /// SIMD).
-pub fn collapse(bvh: &Bvh, corners: impl Fn(u32) -> Option<[[f32; 3]; 3]>) -> WideBvh {
+pub fn collapse(bvh: &Bvh, corners: impl Fn(u32) -> Option<[[f32; 3]; 3]> + Sync) -> WideBvh {
     let mut spans = Vec::with_capacity(bvh.nodes.len() / 2 + 1);
-    let nodes = collapse_nodes(bvh, |n| {
+    let (nodes, sources) = collapse_with_sources(bvh, |n| {
         spans.push(LeafSpan {
             first: n.right_or_first,
             count: n.count,
@@ -202,34 +205,42 @@ pub fn collapse(bvh: &Bvh, corners: impl Fn(u32) -> Option<[[f32; 3]; 3]>) -> Wi
         nodes,
         leaves,
         spans,
+        sources,
     };
     // A tree too big for the words (over 2^29 leaves) keeps no runs: they
     // only start loads early.
     if out.leaves.len() < (u32::MAX as usize + 1) / RUN_LEN {
         set_leaf_runs(&mut out.nodes);
     }
-    for (leaf, span) in out.leaves.iter_mut().zip(&out.spans) {
-        let refs = &bvh.prim_refs[span.range()];
-        if refs.len() > 4 {
-            continue;
-        }
-        let mut block = LeafBlock::EMPTY;
-        let simd = refs.iter().enumerate().all(|(lane, &r)| {
-            let Some(tri) = corners(r) else {
-                return false;
-            };
-            for (corner, q) in tri.iter().enumerate() {
-                for (axis, &x) in q.iter().enumerate() {
-                    block.p[axis][corner][lane] = x;
-                }
+    // On every thread: each block reads its triangles from wherever the
+    // tree put them in the scene.
+    use rayon::prelude::*;
+    out.leaves
+        .par_iter_mut()
+        .zip(&out.spans)
+        .with_min_len(1 << 10)
+        .for_each(|(leaf, span)| {
+            let refs = &bvh.prim_refs[span.range()];
+            if refs.len() > 4 {
+                return;
             }
-            block.prims[lane] = r;
-            true
+            let mut block = LeafBlock::EMPTY;
+            let simd = refs.iter().enumerate().all(|(lane, &r)| {
+                let Some(tri) = corners(r) else {
+                    return false;
+                };
+                for (corner, q) in tri.iter().enumerate() {
+                    for (axis, &x) in q.iter().enumerate() {
+                        block.p[axis][corner][lane] = x;
+                    }
+                }
+                block.prims[lane] = r;
+                true
+            });
+            if simd {
+                *leaf = block;
+            }
         });
-        if simd {
-            *leaf = block;
-        }
-    }
     out
 }
 
@@ -256,22 +267,85 @@ fn set_leaf_runs(nodes: &mut [Node4]) {
 /// leaf lane holding the word `leaf` makes of the binary leaf: the CPU's
 /// `LeafBlock` index, or the shader's primitive-reference run
 /// (`layout::GpuScene::pack`).
-pub fn collapse_nodes(bvh: &Bvh, mut leaf: impl FnMut(&GpuBvhNode) -> u32) -> Vec<Node4> {
-    let mut nodes = Vec::with_capacity(bvh.nodes.len() / 3 + 1);
+pub fn collapse_nodes(bvh: &Bvh, leaf: impl FnMut(&GpuBvhNode) -> u32) -> Vec<Node4> {
+    collapse_with_sources(bvh, leaf).0
+}
+
+/// `collapse_nodes`, and per node the binary node of each lane.
+fn collapse_with_sources(
+    bvh: &Bvh,
+    mut leaf: impl FnMut(&GpuBvhNode) -> u32,
+) -> (Vec<Node4>, Vec<[u32; 4]>) {
+    let mut out = Collapsed {
+        nodes: Vec::with_capacity(bvh.nodes.len() / 3 + 1),
+        sources: Vec::with_capacity(bvh.nodes.len() / 3 + 1),
+    };
     if !bvh.nodes.is_empty() {
-        collapse_node(&bvh.nodes, 0, &mut nodes, &mut leaf);
+        collapse_node(&bvh.nodes, 0, &mut out, &mut leaf);
     }
-    nodes
+    (out.nodes, out.sources)
+}
+
+struct Collapsed {
+    nodes: Vec<Node4>,
+    sources: Vec<[u32; 4]>,
+}
+
+impl WideBvh {
+    /// New boxes and corners for a tree whose binary tree was refitted
+    /// (`Bvh::refit`): each lane takes its binary node's box again, each
+    /// leaf block its triangles' corners, in the shape it has.
+    pub fn refit(&mut self, bvh: &Bvh, corners: impl Fn(u32) -> Option<[[f32; 3]; 3]> + Sync) {
+        use rayon::prelude::*;
+        let bin = &bvh.nodes;
+        self.nodes
+            .par_iter_mut()
+            .zip(&self.sources)
+            .with_min_len(1 << 10)
+            .for_each(|(node, sources)| {
+                for (lane, &k) in sources.iter().enumerate() {
+                    if k != EMPTY {
+                        let k = &bin[k as usize];
+                        for a in 0..3 {
+                            node.lo[a][lane] = k.min[a];
+                            node.hi[a][lane] = k.max[a];
+                        }
+                    }
+                }
+            });
+        self.leaves
+            .par_iter_mut()
+            .with_min_len(1 << 10)
+            .for_each(|block| {
+                if !block.simd() {
+                    return;
+                }
+                for lane in 0..4 {
+                    let r = block.prims[lane];
+                    if r == NONE {
+                        continue;
+                    }
+                    if let Some(tri) = corners(r) {
+                        for (corner, q) in tri.iter().enumerate() {
+                            for (axis, &x) in q.iter().enumerate() {
+                                block.p[axis][corner][lane] = x;
+                            }
+                        }
+                    }
+                }
+            });
+    }
 }
 
 fn collapse_node(
     bin: &[GpuBvhNode],
     index: usize,
-    out: &mut Vec<Node4>,
+    out: &mut Collapsed,
     leaf: &mut impl FnMut(&GpuBvhNode) -> u32,
 ) -> u32 {
-    let slot = out.len();
-    out.push(Node4::EMPTY);
+    let slot = out.nodes.len();
+    out.nodes.push(Node4::EMPTY);
+    out.sources.push([EMPTY; 4]);
     let interior = |i: usize| bin[i].count == 0;
     let area = |i: usize| {
         let n = &bin[i];
@@ -305,6 +379,7 @@ fn collapse_node(
     }
     let mut node = Node4::EMPTY;
     for (lane, &k) in kids[..n].iter().enumerate() {
+        out.sources[slot][lane] = k as u32;
         for a in 0..3 {
             node.lo[a][lane] = bin[k].min[a];
             node.hi[a][lane] = bin[k].max[a];
@@ -322,7 +397,7 @@ fn collapse_node(
             node.child[lane] = collapse_node(bin, k, out, leaf);
         }
     }
-    out[slot] = node;
+    out.nodes[slot] = node;
     slot as u32
 }
 
@@ -424,6 +499,53 @@ pub(crate) mod tests {
             assert_eq!(leaves, want, "{n} triangles");
             assert_eq!(wide.leaves.len(), leaves.len(), "one block a leaf");
             assert!(wide.nodes.len() <= bvh.nodes.len() / 2 + 1);
+        }
+    }
+
+    /// After the binary tree is refitted to moved triangles, each lane
+    /// holds its source node's new box and each leaf block the moved
+    /// corners, in the shape the tree had.
+    #[test]
+    fn refit_takes_the_moved_boxes_and_corners() {
+        let mut scene = scene(2000);
+        for (i, t) in scene.triangles.iter_mut().enumerate() {
+            t.velocity = DVec3::new((i % 7) as f64 - 3.0, (i % 5) as f64 - 2.0, 1.0);
+        }
+        let mut bvh = Bvh::build(&scene);
+        let mut wide = collapse(&bvh, corners(&scene));
+        let (shape, spans) = (
+            wide.nodes.iter().map(|n| n.child).collect::<Vec<_>>(),
+            wide.spans.clone(),
+        );
+        let moved = scene.at_time(0.75);
+        assert!(bvh.refit(&moved, 0.0));
+        wide.refit(&bvh, corners(&moved));
+        assert_eq!(
+            shape,
+            wide.nodes.iter().map(|n| n.child).collect::<Vec<_>>()
+        );
+        assert_eq!(spans, wide.spans);
+        for (node, sources) in wide.nodes.iter().zip(&wide.sources) {
+            for (lane, &k) in sources.iter().enumerate() {
+                if k != EMPTY {
+                    let b = &bvh.nodes[k as usize];
+                    assert_eq!(node.lane_box(lane), (b.min, b.max));
+                }
+            }
+        }
+        for block in &wide.leaves {
+            for lane in 0..4 {
+                let r = block.prims[lane];
+                if r == NONE {
+                    continue;
+                }
+                let want = corners(&moved)(r).expect("a triangle");
+                for (corner, q) in want.iter().enumerate() {
+                    for (axis, &x) in q.iter().enumerate() {
+                        assert_eq!(block.p[axis][corner][lane], x);
+                    }
+                }
+            }
         }
     }
 

@@ -56,8 +56,10 @@ pub struct GpuScene {
 /// names its first primitive reference (`leaf_runs` marks where each run
 /// ends).
 fn wide_nodes(bvh: &Bvh, leaf_order: bool) -> Vec<GpuWideNode> {
+    use rayon::prelude::*;
     crate::bvh::wide::collapse_nodes(bvh, |leaf| leaf_word(leaf, leaf_order))
-        .iter()
+        .par_iter()
+        .with_min_len(1 << 12)
         .map(quantise)
         .collect()
 }
@@ -74,7 +76,16 @@ fn leaf_word(leaf: &GpuBvhNode, leaf_order: bool) -> u32 {
 
 /// `n`'s boxes in 8 bits an axis, each holding the f32 box it replaces.
 fn quantise(n: &crate::bvh::wide::Node4) -> GpuWideNode {
-    let used: Vec<usize> = (0..4).filter(|&l| n.child[l] != WIDE_EMPTY).collect();
+    // An array, not a vector: one per node of a tree of millions.
+    let mut lanes = [0usize; 4];
+    let mut count = 0;
+    for l in 0..4 {
+        if n.child[l] != WIDE_EMPTY {
+            lanes[count] = l;
+            count += 1;
+        }
+    }
+    let used = &lanes[..count];
     let mut origin = [0.0f32; 4];
     let mut exps = 0u32;
     // Bytes by bound (lo x y z, hi x y z) and lane.
@@ -91,7 +102,7 @@ fn quantise(n: &crate::bvh::wide::Node4) -> GpuWideNode {
         let axis = QuantAxis::new(lo, hi);
         origin[a] = axis.origin;
         exps |= axis.biased << (8 * a);
-        for &l in &used {
+        for &l in used {
             q[a][l] = axis.below(n.lo[a][l]);
             q[3 + a][l] = axis.above(n.hi[a][l]);
         }
@@ -249,25 +260,44 @@ impl GpuScene {
         } else {
             Vec::new()
         };
-        let ordered = || {
-            (0..scene.triangles.len())
-                .map(|i| &scene.triangles[scene_triangles.get(i).map_or(i, |&t| t as usize)])
-        };
-        let mut triangles = Vec::with_capacity(scene.triangles.len());
-        let mut normals = Vec::with_capacity(scene.triangles.len());
-        for t in ordered() {
-            triangles.push(GpuTriangle {
-                v: t.vertices.map(|v| {
-                    let mut p = f4(v.position);
-                    p[3] = f32::from_bits(ids[v.material as usize]);
-                    p
-                }),
-            });
-            let n = t.vertices.map(|v| f3(v.normal));
-            normals.push(GpuTriangleNormals {
-                n: *n.as_flattened().first_chunk().expect("9 values"),
-            });
-        }
+        // Packed triangle i.
+        let triangle =
+            |i: usize| &scene.triangles[scene_triangles.get(i).map_or(i, |&t| t as usize)];
+        let ordered = || (0..scene.triangles.len()).map(triangle);
+        // The tree beside the triangles, each on every thread it can use.
+        use rayon::prelude::*;
+        let ((triangles, normals), (nodes, prim_refs)) = rayon::join(
+            || {
+                rayon::join(
+                    || {
+                        (0..scene.triangles.len())
+                            .into_par_iter()
+                            .with_min_len(1 << 12)
+                            .map(|i| GpuTriangle {
+                                v: triangle(i).vertices.map(|v| {
+                                    let mut p = f4(v.position);
+                                    p[3] = f32::from_bits(ids[v.material as usize]);
+                                    p
+                                }),
+                            })
+                            .collect::<Vec<_>>()
+                    },
+                    || {
+                        (0..scene.triangles.len())
+                            .into_par_iter()
+                            .with_min_len(1 << 12)
+                            .map(|i| {
+                                let n = triangle(i).vertices.map(|v| f3(v.normal));
+                                GpuTriangleNormals {
+                                    n: *n.as_flattened().first_chunk().expect("9 values"),
+                                }
+                            })
+                            .collect::<Vec<_>>()
+                    },
+                )
+            },
+            || (wide_nodes(bvh, leaf_order), leaf_runs(bvh, leaf_order)),
+        );
         // A scene triangle's packed index (only the skips need it).
         let mut packed_index = Vec::new();
         if !scene_triangles.is_empty() && !bvh.surfaces_at_lights.iter().all(Vec::is_empty) {
@@ -321,8 +351,8 @@ impl GpuScene {
             normals,
             materials,
             lights,
-            nodes: wide_nodes(bvh, leaf_order),
-            prim_refs: leaf_runs(bvh, leaf_order),
+            nodes,
+            prim_refs,
             skips,
             velocities,
             ambient: f3(scene.ambient),

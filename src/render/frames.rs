@@ -10,7 +10,6 @@ use std::sync::Arc;
 use super::job::{settings_text, Done, Frames, FramesDone, Job, Watch};
 use super::options::PixelFormat;
 use super::output::RenderOutput;
-use super::region::Region;
 use super::renderer::Renderer;
 use crate::images::encode::EncodeOptions;
 use crate::images::framebuffer::{Image, ImageFile};
@@ -67,6 +66,8 @@ impl Renderer {
         let mut last_output: Option<RenderOutput> = None;
         // Nothing moves: one render and one encode serve every frame.
         let mut still: Option<Arc<Encoded>> = None;
+        // The moving scene's tree and packing, refitted from frame to frame.
+        let mut moving = None;
         for i in first..=last {
             let path = frames.path(dir, i, format);
             // A requeued task of an array keeps the frames it finished.
@@ -78,8 +79,8 @@ impl Renderer {
             let frame = match &still {
                 Some(frame) => frame.clone(),
                 None => {
-                    let at = scene.at_time(effects.frame_time(i));
-                    let rendered = self.render_region_as(&at, Region::All, pixels, &|_, _| {});
+                    let rendered =
+                        self.render_moving_frame(scene, effects.frame_time(i), &mut moving, pixels);
                     // Frames already handed over are still written whole
                     // (the queue's drop waits for them).
                     let mut output = rendered.map_err(|e| e.in_frame(i))?;

@@ -15,6 +15,7 @@
 
 mod frames;
 mod job;
+mod motion;
 mod on_cpu;
 mod options;
 mod output;

@@ -30,35 +30,78 @@ pub trait SpaceMap {
 impl Scene {
     /// The scene with every position, direction, normal and length moved by
     /// `map`; materials, settings and the camera block as they are.
-    pub fn mapped(&self, map: &impl SpaceMap) -> Scene {
-        let mut s = self.clone();
-        for sphere in &mut s.spheres {
-            sphere.center = map.point(sphere.center, sphere.velocity);
-            sphere.radius = map.length(sphere.radius);
-            sphere.velocity = map.vector(sphere.velocity);
+    pub fn mapped(&self, map: &(impl SpaceMap + Sync)) -> Scene {
+        use rayon::prelude::*;
+        // Every field named, so that a new one is not forgotten here; the
+        // primitives mapped as they are copied, on every thread (a moving
+        // 2M-triangle scene is 400 MB a frame).
+        let Scene {
+            ambient,
+            spheres,
+            triangles,
+            materials,
+            lights,
+            settings,
+            warnings,
+            more_warnings,
+            camera,
+            meshes,
+        } = self;
+        let spheres = spheres
+            .par_iter()
+            .with_min_len(1 << 12)
+            .map(|sphere| {
+                let mut sphere = *sphere;
+                sphere.center = map.point(sphere.center, sphere.velocity);
+                sphere.radius = map.length(sphere.radius);
+                sphere.velocity = map.vector(sphere.velocity);
+                sphere
+            })
+            .collect();
+        let triangles = triangles
+            .par_iter()
+            .with_min_len(1 << 12)
+            .map(|t| {
+                let mut t = *t;
+                for v in &mut t.vertices {
+                    v.position = map.point(v.position, t.velocity);
+                    v.normal = map.normal(v.normal);
+                }
+                t.velocity = map.vector(t.velocity);
+                t
+            })
+            .collect();
+        let lights = lights
+            .iter()
+            .map(|l| {
+                let mut l = *l;
+                l.position = map.point(l.position, l.velocity);
+                l.velocity = map.vector(l.velocity);
+                l.shape = match l.shape {
+                    LightShape::Point => LightShape::Point,
+                    LightShape::Sphere { radius } => LightShape::Sphere {
+                        radius: map.length(radius),
+                    },
+                    LightShape::Rect { edge_u, edge_v } => LightShape::Rect {
+                        edge_u: map.vector(edge_u),
+                        edge_v: map.vector(edge_v),
+                    },
+                };
+                l
+            })
+            .collect();
+        Scene {
+            ambient: *ambient,
+            spheres,
+            triangles,
+            materials: materials.clone(),
+            lights,
+            settings: *settings,
+            warnings: warnings.clone(),
+            more_warnings: *more_warnings,
+            camera: *camera,
+            meshes: meshes.clone(),
         }
-        for t in &mut s.triangles {
-            for v in &mut t.vertices {
-                v.position = map.point(v.position, t.velocity);
-                v.normal = map.normal(v.normal);
-            }
-            t.velocity = map.vector(t.velocity);
-        }
-        for l in &mut s.lights {
-            l.position = map.point(l.position, l.velocity);
-            l.velocity = map.vector(l.velocity);
-            l.shape = match l.shape {
-                LightShape::Point => LightShape::Point,
-                LightShape::Sphere { radius } => LightShape::Sphere {
-                    radius: map.length(radius),
-                },
-                LightShape::Rect { edge_u, edge_v } => LightShape::Rect {
-                    edge_u: map.vector(edge_u),
-                    edge_v: map.vector(edge_v),
-                },
-            };
-        }
-        s
     }
 
     /// The scene at `time` seconds: everything moved along its velocity.
@@ -83,33 +126,53 @@ impl Scene {
     /// are moved and rotated in f64 (normals, velocities and light edges
     /// rotated), once, before anything is rounded to f32.
     pub fn in_view_space(&self) -> Cow<'_, Scene> {
-        let Some(cam) = self.camera else {
-            return Cow::Borrowed(self);
-        };
-        if cam.is_classic_placement() {
-            return Cow::Borrowed(self);
-        }
-        let Some(basis) = cam.basis() else {
-            // The parser refuses such a camera; keep the scene as it is.
-            return Cow::Borrowed(self);
-        };
-        struct View(CameraSpec, [DVec3; 3]);
+        self.at_time_in_view_space(0.0)
+    }
+
+    /// `self.at_time(time).in_view_space()`, bit for bit, in one pass over
+    /// the primitives instead of two copies: what an animation's frame
+    /// renders.
+    pub fn at_time_in_view_space(&self, time: f64) -> Cow<'_, Scene> {
+        struct View(f64, Option<(CameraSpec, [DVec3; 3])>);
         impl SpaceMap for View {
-            fn point(&self, p: DVec3, _: DVec3) -> DVec3 {
-                self.0.to_view(&self.1, p)
+            fn point(&self, p: DVec3, velocity: DVec3) -> DVec3 {
+                // `at_time`'s step, then the view's: the same operations.
+                let p = if self.0 == 0.0 {
+                    p
+                } else {
+                    p + velocity * self.0
+                };
+                match &self.1 {
+                    Some((cam, basis)) => cam.to_view(basis, p),
+                    None => p,
+                }
             }
             fn vector(&self, v: DVec3) -> DVec3 {
-                CameraSpec::dir_to_view(&self.1, v)
+                match &self.1 {
+                    Some((_, basis)) => CameraSpec::dir_to_view(basis, v),
+                    None => v,
+                }
             }
             fn normal(&self, n: DVec3) -> DVec3 {
-                CameraSpec::dir_to_view(&self.1, n)
+                self.vector(n)
             }
         }
-        let mut s = self.mapped(&View(cam, basis));
-        s.camera = Some(CameraSpec {
-            fov: cam.fov,
-            ..CameraSpec::CLASSIC
-        });
+        let view = self
+            .camera
+            .filter(|cam| !cam.is_classic_placement())
+            // The parser refuses a camera without a basis; such a scene is
+            // kept as it is.
+            .and_then(|cam| Some((cam, cam.basis()?)));
+        if view.is_none() && time == 0.0 {
+            return Cow::Borrowed(self);
+        }
+        let mut s = self.mapped(&View(time, view));
+        if let Some((cam, _)) = view {
+            s.camera = Some(CameraSpec {
+                fov: cam.fov,
+                ..CameraSpec::CLASSIC
+            });
+        }
         Cow::Owned(s)
     }
 

@@ -220,6 +220,35 @@ impl<R: Real> CpuGeometry<R> {
     }
 }
 
+impl<R: Real> CpuGeometry<R> {
+    /// Moves this geometry to `scene`, the primitives it was made from
+    /// moved along their velocities (`Scene::at_time`, in view space), with
+    /// `bvh` refitted to them: new corners, sphere centres and boxes, in
+    /// the wide tree's shape. Normals, materials, radii and velocities are
+    /// what moving leaves them, so they are kept.
+    pub fn refit(&mut self, scene: &Scene, bvh: &Bvh) {
+        use rayon::prelude::*;
+        let scene = &*scene.in_render_space(bvh.scale);
+        let v = R::v3_from_f64;
+        for (s, moved) in self.spheres.iter_mut().zip(&scene.spheres) {
+            s.center = v(moved.center);
+        }
+        self.triangles
+            .par_iter_mut()
+            .zip(scene.triangles.par_iter())
+            .with_min_len(1 << 12)
+            .for_each(|(t, moved)| *t = moved.vertices.map(|x| v(x.position)));
+        let corners = |r: u32| {
+            let t = scene
+                .triangles
+                .get(r as usize)
+                .filter(|_| R::SIMD_LEAVES && r & SPHERE_BIT == 0)?;
+            Some(t.vertices.map(|x| x.position.as_vec3().to_array()))
+        };
+        self.wide.refit(bvh, corners);
+    }
+}
+
 impl<'a, R: Real> CpuScene<'a, R> {
     /// Over `geometry`, which `CpuGeometry::new` built for this scene and BVH.
     pub fn new(
