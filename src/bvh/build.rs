@@ -40,6 +40,9 @@ pub(super) struct Box3 {
     pub max: Vec3A,
 }
 
+// SAFETY: two `Vec3A`s, for which all zero bytes are the vector zero.
+unsafe impl bytemuck::Zeroable for Box3 {}
+
 impl Box3 {
     pub const EMPTY: Box3 = Box3 {
         min: Vec3A::splat(f32::INFINITY),
@@ -144,7 +147,9 @@ pub(super) fn build(mut boxes: Vec<Box3>, mut refs: Vec<u32>, parallel_min: usiz
     }
     let extent = Extent::of(&boxes);
     let n = boxes.len();
-    let (mut spare, mut spare_refs) = rayon::join(|| vec![Box3::EMPTY; n], || vec![0u32; n]);
+    // Zeroed memory comes from the system already zeroed: no pass of
+    // writes before the partitions write it (64 MB at 2M primitives).
+    let (mut spare, mut spare_refs) = (bytemuck::zeroed_vec::<Box3>(n), vec![0u32; n]);
     let at = Slices {
         cur: &mut boxes,
         cur_refs: &mut refs,
@@ -370,7 +375,8 @@ impl Builder {
                 [Extent::of(&parts.src[..mid]), Extent::of(&parts.src[mid..])],
             );
         };
-        let left = |b: &Box3| binning.bin_of(b, axis) <= plane;
+        let on_axis = binning.axis(axis);
+        let left = |b: &Box3| on_axis.bin_of(b) <= plane;
         let mid = bins.count[axis][..=plane].iter().map(|&c| c as usize).sum();
         let (dst_left, dst_right) = parts.dst.split_at_mut(mid);
         let (refs_left, refs_right) = parts.dst_refs.split_at_mut(mid);
@@ -518,21 +524,14 @@ impl Binning {
         [a, b, c]
     }
 
-    /// `bins_of(b)[axis]`, with the same arithmetic on one lane.
-    #[inline(always)]
-    fn bin_of(&self, b: &Box3, axis: usize) -> usize {
-        let d = (b.min[axis] * 0.5 + b.max[axis] * 0.5) - self.min[axis];
-        let last = (BIN_COUNT - 1) as f32;
-        let x = if self.peel.test(axis) {
-            if d > 0.0 {
-                last
-            } else {
-                0.0
-            }
-        } else {
-            (d * self.scale[axis] - 0.5).max(0.0).min(last)
-        };
-        ((x + ROUND).to_bits() & 0xff) as usize
+    /// One axis of it, for the partition.
+    fn axis(&self, axis: usize) -> AxisBinning {
+        AxisBinning {
+            axis,
+            min: self.min[axis],
+            scale: self.scale[axis],
+            peel: self.peel.test(axis),
+        }
     }
 
     fn bin(&self, boxes: &[Box3], bins: &mut Bins) {
@@ -547,6 +546,34 @@ impl Binning {
                 bins.count[axis][k] += 1;
             }
         }
+    }
+}
+
+/// `Binning` on one axis.
+#[derive(Clone, Copy)]
+struct AxisBinning {
+    axis: usize,
+    min: f32,
+    scale: f32,
+    peel: bool,
+}
+
+impl AxisBinning {
+    /// `Binning::bins_of(b)[axis]`, with the same arithmetic on one lane.
+    #[inline(always)]
+    fn bin_of(&self, b: &Box3) -> usize {
+        let d = (b.min[self.axis] * 0.5 + b.max[self.axis] * 0.5) - self.min;
+        let last = (BIN_COUNT - 1) as f32;
+        let x = if self.peel {
+            if d > 0.0 {
+                last
+            } else {
+                0.0
+            }
+        } else {
+            (d * self.scale - 0.5).max(0.0).min(last)
+        };
+        ((x + ROUND).to_bits() & 0xff) as usize
     }
 }
 

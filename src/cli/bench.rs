@@ -46,6 +46,28 @@ enum BenchCommand {
     /// same integral, and its render time, at the scenes' own sample
     /// counts; the ratios against `stratified`, as a markdown table.
     Samplers(SamplersArgs),
+    /// What each scene costs before its first ray: the BVH build and the
+    /// CPU's and GPU's packing on 1 thread and on every thread (and
+    /// Embree's upload + commit beside them, with `--embree`), as a
+    /// markdown table.
+    Build(BuildArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct BuildArgs {
+    /// Scene files (e.g. ../shared/tools/gen_spheregrid.py --seg 142).
+    #[arg(required = true)]
+    scenes: Vec<PathBuf>,
+    /// Rounds per scene and thread count; each cell is their median.
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    rounds: u32,
+    /// An Embree harness (../shared/tools/embree_bench.cpp), run between
+    /// glint's rounds on the same threads for its `build:` line.
+    #[arg(long)]
+    embree: Option<PathBuf>,
+    /// The harness's `--quality`: medium is Embree's default builder.
+    #[arg(long, default_value = "medium", value_parser = ["low", "medium", "high"])]
+    quality: String,
 }
 
 #[derive(Args, Debug)]
@@ -223,6 +245,7 @@ pub fn run(args: BenchArgs) -> anyhow::Result<ExitCode> {
         Some(BenchCommand::Specialize(args)) => run_specialize(args),
         Some(BenchCommand::Embree(args)) => run_embree(args),
         Some(BenchCommand::Samplers(args)) => run_samplers(args),
+        Some(BenchCommand::Build(args)) => run_build(args),
         None => run_scenes(args.scenes),
     }
 }
@@ -294,6 +317,26 @@ fn run_samplers(args: SamplersArgs) -> anyhow::Result<ExitCode> {
         device: args.device.as_deref().map(DeviceSelector::parse),
     };
     let report = glint::suites::bench::run_samplers(&options, &mut |line| eprintln!("{line}"))?;
+    println!("{}", report.to_markdown());
+    Ok(ExitCode::SUCCESS)
+}
+
+fn run_build(args: BuildArgs) -> anyhow::Result<ExitCode> {
+    if let Some(harness) = args.embree.as_ref().filter(|h| !h.is_file()) {
+        return Err(glint::Error::InvalidOption(format!(
+            "{}: no such harness program; build one with `make -C ../shared/tools`",
+            harness.display()
+        ))
+        .into());
+    }
+    let all = rayon::current_num_threads();
+    let options = glint::suites::bench::BuildOptions {
+        scenes: args.scenes,
+        threads: if all > 1 { vec![1, all] } else { vec![1] },
+        rounds: args.rounds as usize,
+        embree: args.embree.map(|h| (h, args.quality)),
+    };
+    let report = glint::suites::bench::run_build(&options, &mut |line| eprintln!("{line}"))?;
     println!("{}", report.to_markdown());
     Ok(ExitCode::SUCCESS)
 }

@@ -4,10 +4,12 @@
 //! specialised shader against the generic one (`specialize`, `glint bench
 //! specialize`), glint against an Embree renderer of the same spec
 //! (`embree`, `glint bench embree`), and what each sampler's error and time
-//! come to (`samplers`, `glint bench samplers`). `process` times the glint
+//! come to (`samplers`, `glint bench samplers`), and what a scene costs
+//! before its first ray against Embree's build (`build`, `glint bench build`). `process` times the glint
 //! binary end to end for `glint bench`'s last column. `glint accuracy` (src/accuracy.rs)
 //! measures error against time.
 
+mod build;
 mod common;
 mod embree;
 mod hard;
@@ -16,6 +18,7 @@ mod samplers;
 mod scenes;
 mod specialize;
 
+pub use build::{run_build, BuildOptions, BuildReport, BuildRow};
 pub use common::{default_scenes, Stat, CLASSIC_DIR, CLASSIC_SCENES};
 pub use embree::{
     parse_result, run_embree, run_harness, EmbreeOptions, EmbreeReport, EmbreeScene, HarnessRun,
