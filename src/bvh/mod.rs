@@ -13,7 +13,7 @@
 mod build;
 pub mod lights_on_surfaces;
 pub mod node;
-mod refit;
+pub mod refit;
 pub mod wide;
 
 use glam::{DVec3, Vec3A};
@@ -23,7 +23,6 @@ use self::build::Box3;
 use crate::features::Features;
 use crate::scene::{Bounds, Effects, Scene};
 pub use node::{GpuBvhNode, BVH_MAX_DEPTH, SPHERE_BIT};
-pub use refit::REFIT_LIMIT;
 
 /// Relative SAH cost of a primitive test against a node visit.
 const INTERSECT_COST: f64 = 1.0;

@@ -192,56 +192,77 @@ pub const STACK: usize = 3 * BVH_MAX_DEPTH as usize + 4;
 /// f32, None for a sphere (or always None where leaves are not tested in
 /// SIMD).
 pub fn collapse(bvh: &Bvh, corners: impl Fn(u32) -> Option<[[f32; 3]; 3]> + Sync) -> WideBvh {
-    let mut spans = Vec::with_capacity(bvh.nodes.len() / 2 + 1);
-    let (nodes, sources) = collapse_with_sources(bvh, |n| {
-        spans.push(LeafSpan {
-            first: n.right_or_first,
-            count: n.count,
-        });
-        LEAF | (spans.len() - 1) as u32
-    });
-    let leaves = vec![LeafBlock::EMPTY; spans.len()];
-    let mut out = WideBvh {
-        nodes,
-        leaves,
-        spans,
-        sources,
-    };
-    // A tree too big for the words (over 2^29 leaves) keeps no runs: they
-    // only start loads early.
-    if out.leaves.len() < (u32::MAX as usize + 1) / RUN_LEN {
-        set_leaf_runs(&mut out.nodes);
-    }
-    // On every thread: each block reads its triangles from wherever the
-    // tree put them in the scene.
-    use rayon::prelude::*;
-    out.leaves
-        .par_iter_mut()
-        .zip(&out.spans)
-        .with_min_len(1 << 10)
-        .for_each(|(leaf, span)| {
-            let refs = &bvh.prim_refs[span.range()];
-            if refs.len() > 4 {
-                return;
-            }
-            let mut block = LeafBlock::EMPTY;
-            let simd = refs.iter().enumerate().all(|(lane, &r)| {
-                let Some(tri) = corners(r) else {
-                    return false;
-                };
-                for (corner, q) in tri.iter().enumerate() {
-                    for (axis, &x) in q.iter().enumerate() {
-                        block.p[axis][corner][lane] = x;
-                    }
-                }
-                block.prims[lane] = r;
-                true
-            });
-            if simd {
-                *leaf = block;
-            }
-        });
+    let mut out = WideBvh::shape(bvh);
+    out.fill_leaves(bvh, corners);
     out
+}
+
+impl WideBvh {
+    /// The tree's shape alone (`collapse` less the leaf blocks' corners,
+    /// which `fill_leaves` adds): a caller can make the corners' source
+    /// beside it.
+    pub fn shape(bvh: &Bvh) -> WideBvh {
+        let mut spans = Vec::with_capacity(bvh.nodes.len() / 2 + 1);
+        let (nodes, sources) = collapse_with_sources(bvh, |n| {
+            spans.push(LeafSpan {
+                first: n.right_or_first,
+                count: n.count,
+            });
+            LEAF | (spans.len() - 1) as u32
+        });
+        let leaves = vec![LeafBlock::EMPTY; spans.len()];
+        let mut out = WideBvh {
+            nodes,
+            leaves,
+            spans,
+            sources,
+        };
+        // A tree too big for the words (over 2^29 leaves) keeps no runs:
+        // they only start loads early.
+        if out.leaves.len() < (u32::MAX as usize + 1) / RUN_LEN {
+            set_leaf_runs(&mut out.nodes);
+        }
+        out
+    }
+
+    /// Each leaf of up to four triangles as a block for the SIMD test,
+    /// `corners` giving a reference's triangle in f32 (None: a sphere, or
+    /// no SIMD leaves).
+    pub fn fill_leaves(
+        &mut self,
+        bvh: &Bvh,
+        corners: impl Fn(u32) -> Option<[[f32; 3]; 3]> + Sync,
+    ) {
+        // On every thread: each block reads its triangles from wherever the
+        // tree put them.
+        use rayon::prelude::*;
+        self.leaves
+            .par_iter_mut()
+            .zip(&self.spans)
+            .with_min_len(1 << 10)
+            .for_each(|(leaf, span)| {
+                let refs = &bvh.prim_refs[span.range()];
+                if refs.len() > 4 {
+                    return;
+                }
+                let mut block = LeafBlock::EMPTY;
+                let simd = refs.iter().enumerate().all(|(lane, &r)| {
+                    let Some(tri) = corners(r) else {
+                        return false;
+                    };
+                    for (corner, q) in tri.iter().enumerate() {
+                        for (axis, &x) in q.iter().enumerate() {
+                            block.p[axis][corner][lane] = x;
+                        }
+                    }
+                    block.prims[lane] = r;
+                    true
+                });
+                if simd {
+                    *leaf = block;
+                }
+            });
+    }
 }
 
 /// Fills `Node4::leaves`: each node's leaves were numbered together

@@ -266,35 +266,30 @@ impl GpuScene {
         let ordered = || (0..scene.triangles.len()).map(triangle);
         // The tree beside the triangles, each on every thread it can use.
         use rayon::prelude::*;
+        // One pass over the scene's triangles for both lists: in leaf
+        // order each read is a miss.
         let ((triangles, normals), (nodes, prim_refs)) = rayon::join(
-            || {
-                rayon::join(
-                    || {
-                        (0..scene.triangles.len())
-                            .into_par_iter()
-                            .with_min_len(1 << 12)
-                            .map(|i| GpuTriangle {
-                                v: triangle(i).vertices.map(|v| {
+            || -> (Vec<_>, Vec<_>) {
+                (0..scene.triangles.len())
+                    .into_par_iter()
+                    .with_min_len(1 << 12)
+                    .map(|i| {
+                        let t = triangle(i);
+                        let n = t.vertices.map(|v| f3(v.normal));
+                        (
+                            GpuTriangle {
+                                v: t.vertices.map(|v| {
                                     let mut p = f4(v.position);
                                     p[3] = f32::from_bits(ids[v.material as usize]);
                                     p
                                 }),
-                            })
-                            .collect::<Vec<_>>()
-                    },
-                    || {
-                        (0..scene.triangles.len())
-                            .into_par_iter()
-                            .with_min_len(1 << 12)
-                            .map(|i| {
-                                let n = triangle(i).vertices.map(|v| f3(v.normal));
-                                GpuTriangleNormals {
-                                    n: *n.as_flattened().first_chunk().expect("9 values"),
-                                }
-                            })
-                            .collect::<Vec<_>>()
-                    },
-                )
+                            },
+                            GpuTriangleNormals {
+                                n: *n.as_flattened().first_chunk().expect("9 values"),
+                            },
+                        )
+                    })
+                    .unzip()
             },
             || (wide_nodes(bvh, leaf_order), leaf_runs(bvh, leaf_order)),
         );

@@ -9,7 +9,7 @@ use super::options::PixelFormat;
 use super::output::RenderOutput;
 use super::region::Region;
 use super::renderer::{Packed, Prepared, Renderer};
-use crate::bvh::REFIT_LIMIT;
+use crate::bvh::refit::REFIT_LIMIT;
 use crate::layout::GpuScene;
 use crate::scene::Scene;
 use crate::Error;
@@ -17,6 +17,9 @@ use crate::Error;
 /// The last frame's tree and packing, and the SAH cost the tree had when
 /// it was built.
 pub(super) struct Moving {
+    /// The scene at the last frame's time, in view space: the next frame
+    /// is written over it.
+    view: Scene,
     prepared: Prepared,
     packed: Packed,
     built_cost: f64,
@@ -25,8 +28,8 @@ pub(super) struct Moving {
 impl Renderer {
     /// Frame `scene` at `time` seconds, from what the frame before left in
     /// `moving` where there is one (and leaving this frame's there).
-    /// `-v` shows a refitted frame's `refit` phase where a built one shows
-    /// `bvh`.
+    /// `-v` shows `move` (the scene at that time, in view space), then a
+    /// refitted frame's `refit` phase where a built one shows `bvh`.
     pub(super) fn render_moving_frame(
         &self,
         scene: &Scene,
@@ -34,40 +37,47 @@ impl Renderer {
         moving: &mut Option<Moving>,
         pixels: PixelFormat,
     ) -> Result<RenderOutput, Error> {
-        let view = &*scene.at_time_in_view_space(time);
         let mut timings = self.take_setup_timings();
-        let refitted = moving.take().and_then(|mut m| {
+        let mut last = moving.take();
+        let mut view = last
+            .as_mut()
+            .map(|m| std::mem::take(&mut m.view))
+            .unwrap_or_default();
+        timings.time("move", || scene.at_time_in_view_space_into(time, &mut view));
+        let refitted = last.and_then(|mut m| {
             let bvh = &mut m.prepared.bvh;
             let fits = timings.time("refit", || {
-                bvh.refit_for_render(view, &m.prepared.effects)
+                bvh.refit_for_render(&view, &m.prepared.effects)
                     && bvh.stats().sah_cost <= REFIT_LIMIT * m.built_cost
             });
             fits.then_some(m)
         });
-        let m = match refitted {
+        let mut m = match refitted {
             Some(mut m) => {
                 let bvh = &m.prepared.bvh;
                 timings.time("pack", || match &mut m.packed {
-                    Packed::Cpu(geometry) => geometry.refit(view, bvh),
+                    Packed::Cpu(geometry) => geometry.refit(&view, bvh),
                     // The shader's tree is collapsed and quantised afresh:
                     // its upload sends only the lists that changed.
-                    Packed::Gpu(packed) => *packed = GpuScene::pack(view, bvh),
+                    Packed::Gpu(packed) => *packed = GpuScene::pack(&view, bvh),
                 });
                 m
             }
             None => {
-                let prepared = self.prepare(view, &mut timings);
-                let packed = self.pack(view, &prepared, &mut timings);
+                let prepared = self.prepare(&view, &mut timings);
+                let packed = self.pack(&view, &prepared, &mut timings);
                 Moving {
+                    view: Scene::default(),
                     built_cost: prepared.bvh.stats().sah_cost,
                     prepared,
                     packed,
                 }
             }
         };
+        m.view = view;
         let m = moving.insert(m);
         self.render_prepared_as(
-            view,
+            &m.view,
             &m.prepared,
             &m.packed,
             timings,

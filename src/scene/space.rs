@@ -31,10 +31,18 @@ impl Scene {
     /// The scene with every position, direction, normal and length moved by
     /// `map`; materials, settings and the camera block as they are.
     pub fn mapped(&self, map: &(impl SpaceMap + Sync)) -> Scene {
+        let mut s = Scene::default();
+        self.mapped_into(map, &mut s);
+        s
+    }
+
+    /// `mapped`, written over `out`, whose lists keep their memory: an
+    /// animation's frames reuse one scene's instead of faulting in fresh
+    /// pages for each (a moving 2M-triangle scene is 400 MB a frame).
+    pub fn mapped_into(&self, map: &(impl SpaceMap + Sync), out: &mut Scene) {
         use rayon::prelude::*;
         // Every field named, so that a new one is not forgotten here; the
-        // primitives mapped as they are copied, on every thread (a moving
-        // 2M-triangle scene is 400 MB a frame).
+        // primitives mapped as they are copied, on every thread.
         let Scene {
             ambient,
             spheres,
@@ -47,21 +55,18 @@ impl Scene {
             camera,
             meshes,
         } = self;
-        let spheres = spheres
-            .par_iter()
-            .with_min_len(1 << 12)
-            .map(|sphere| {
+        out.spheres.clear();
+        out.spheres
+            .par_extend(spheres.par_iter().with_min_len(1 << 12).map(|sphere| {
                 let mut sphere = *sphere;
                 sphere.center = map.point(sphere.center, sphere.velocity);
                 sphere.radius = map.length(sphere.radius);
                 sphere.velocity = map.vector(sphere.velocity);
                 sphere
-            })
-            .collect();
-        let triangles = triangles
-            .par_iter()
-            .with_min_len(1 << 12)
-            .map(|t| {
+            }));
+        out.triangles.clear();
+        out.triangles
+            .par_extend(triangles.par_iter().with_min_len(1 << 12).map(|t| {
                 let mut t = *t;
                 for v in &mut t.vertices {
                     v.position = map.point(v.position, t.velocity);
@@ -69,39 +74,31 @@ impl Scene {
                 }
                 t.velocity = map.vector(t.velocity);
                 t
-            })
-            .collect();
-        let lights = lights
-            .iter()
-            .map(|l| {
-                let mut l = *l;
-                l.position = map.point(l.position, l.velocity);
-                l.velocity = map.vector(l.velocity);
-                l.shape = match l.shape {
-                    LightShape::Point => LightShape::Point,
-                    LightShape::Sphere { radius } => LightShape::Sphere {
-                        radius: map.length(radius),
-                    },
-                    LightShape::Rect { edge_u, edge_v } => LightShape::Rect {
-                        edge_u: map.vector(edge_u),
-                        edge_v: map.vector(edge_v),
-                    },
-                };
-                l
-            })
-            .collect();
-        Scene {
-            ambient: *ambient,
-            spheres,
-            triangles,
-            materials: materials.clone(),
-            lights,
-            settings: *settings,
-            warnings: warnings.clone(),
-            more_warnings: *more_warnings,
-            camera: *camera,
-            meshes: meshes.clone(),
-        }
+            }));
+        out.lights.clear();
+        out.lights.extend(lights.iter().map(|l| {
+            let mut l = *l;
+            l.position = map.point(l.position, l.velocity);
+            l.velocity = map.vector(l.velocity);
+            l.shape = match l.shape {
+                LightShape::Point => LightShape::Point,
+                LightShape::Sphere { radius } => LightShape::Sphere {
+                    radius: map.length(radius),
+                },
+                LightShape::Rect { edge_u, edge_v } => LightShape::Rect {
+                    edge_u: map.vector(edge_u),
+                    edge_v: map.vector(edge_v),
+                },
+            };
+            l
+        }));
+        out.ambient = *ambient;
+        out.materials.clone_from(materials);
+        out.settings = *settings;
+        out.warnings.clone_from(warnings);
+        out.more_warnings = *more_warnings;
+        out.camera = *camera;
+        out.meshes.clone_from(meshes);
     }
 
     /// The scene at `time` seconds: everything moved along its velocity.
@@ -130,9 +127,19 @@ impl Scene {
     }
 
     /// `self.at_time(time).in_view_space()`, bit for bit, in one pass over
-    /// the primitives instead of two copies: what an animation's frame
-    /// renders.
+    /// the primitives instead of two copies.
     pub fn at_time_in_view_space(&self, time: f64) -> Cow<'_, Scene> {
+        if self.view_basis().is_none() && time == 0.0 {
+            return Cow::Borrowed(self);
+        }
+        let mut s = Scene::default();
+        self.at_time_in_view_space_into(time, &mut s);
+        Cow::Owned(s)
+    }
+
+    /// `at_time_in_view_space`, written over `out` (`mapped_into`): what an
+    /// animation's frame renders.
+    pub fn at_time_in_view_space_into(&self, time: f64, out: &mut Scene) {
         struct View(f64, Option<(CameraSpec, [DVec3; 3])>);
         impl SpaceMap for View {
             fn point(&self, p: DVec3, velocity: DVec3) -> DVec3 {
@@ -157,23 +164,23 @@ impl Scene {
                 self.vector(n)
             }
         }
-        let view = self
-            .camera
-            .filter(|cam| !cam.is_classic_placement())
-            // The parser refuses a camera without a basis; such a scene is
-            // kept as it is.
-            .and_then(|cam| Some((cam, cam.basis()?)));
-        if view.is_none() && time == 0.0 {
-            return Cow::Borrowed(self);
-        }
-        let mut s = self.mapped(&View(time, view));
+        let view = self.view_basis();
+        self.mapped_into(&View(time, view), out);
         if let Some((cam, _)) = view {
-            s.camera = Some(CameraSpec {
+            out.camera = Some(CameraSpec {
                 fov: cam.fov,
                 ..CameraSpec::CLASSIC
             });
         }
-        Cow::Owned(s)
+    }
+
+    /// The camera block and its basis where it moves the scene (not placed
+    /// as the classic camera). The parser refuses a camera without a
+    /// basis; such a scene is kept as it is.
+    fn view_basis(&self) -> Option<(CameraSpec, [DVec3; 3])> {
+        self.camera
+            .filter(|cam| !cam.is_classic_placement())
+            .and_then(|cam| Some((cam, cam.basis()?)))
     }
 
     /// The scene scaled by `factor` about the camera (the origin): positions,

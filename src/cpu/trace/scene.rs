@@ -1,7 +1,7 @@
 //! The scene as the CPU reference traces it: f32 or f64 geometry built once
 //! from the scene and its tree, lights, materials, and what a hit records.
 
-use crate::bvh::wide::{self, WideBvh};
+use crate::bvh::wide::WideBvh;
 use crate::bvh::Bvh;
 use crate::camera::Camera;
 use crate::cpu::options::CpuOptions;
@@ -146,20 +146,11 @@ impl<R: Real> CpuGeometry<R> {
         let scene = &*scene.in_render_space(bvh.scale);
         let v = R::v3_from_f64;
         let features = Features::of(scene, effects);
-        // The f32 corners are the f32 path's own (`v` rounds the same way);
-        // none where `R` tests leaves one triangle at a time.
-        let corners = |r: u32| {
-            let t = scene
-                .triangles
-                .get(r as usize)
-                .filter(|_| R::SIMD_LEAVES && r & SPHERE_BIT == 0)?;
-            Some(t.vertices.map(|x| x.position.as_vec3().to_array()))
-        };
-        // The tree on one thread, the primitives on the others: at 8M
-        // triangles each is seconds, and a render waits for both.
+        // The tree's shape on one thread, the primitives on the others: at
+        // 8M triangles each is seconds, and a render waits for both.
         use rayon::prelude::*;
-        let (wide, (triangles, shading)) = rayon::join(
-            || wide::collapse(bvh, corners),
+        let (mut wide, (triangles, shading)) = rayon::join(
+            || WideBvh::shape(bvh),
             || {
                 rayon::join(
                     || {
@@ -167,7 +158,7 @@ impl<R: Real> CpuGeometry<R> {
                             .triangles
                             .par_iter()
                             .map(|t| t.vertices.map(|x| v(x.position)))
-                            .collect()
+                            .collect::<Vec<_>>()
                     },
                     || {
                         scene
@@ -184,6 +175,7 @@ impl<R: Real> CpuGeometry<R> {
                 )
             },
         );
+        wide.fill_leaves(bvh, leaf_corners::<R>(&triangles));
         CpuGeometry {
             spheres: scene
                 .spheres
@@ -220,6 +212,22 @@ impl<R: Real> CpuGeometry<R> {
     }
 }
 
+/// A triangle reference's corners in f32 for the leaf blocks, read from
+/// the converted triangles (36 or 72 bytes, not the scene's 192): in f32
+/// they are those corners, in f64 their nearest f32, as the f32 path
+/// rounds the scene's values. None for a sphere, and always where `R`
+/// tests leaves one triangle at a time.
+fn leaf_corners<R: Real>(
+    triangles: &[[R::V3; 3]],
+) -> impl Fn(u32) -> Option<[[f32; 3]; 3]> + Sync + '_ {
+    move |r: u32| {
+        let t = triangles
+            .get(r as usize)
+            .filter(|_| R::SIMD_LEAVES && r & SPHERE_BIT == 0)?;
+        Some(t.map(R::v3_to_f32))
+    }
+}
+
 impl<R: Real> CpuGeometry<R> {
     /// Moves this geometry to `scene`, the primitives it was made from
     /// moved along their velocities (`Scene::at_time`, in view space), with
@@ -238,14 +246,7 @@ impl<R: Real> CpuGeometry<R> {
             .zip(scene.triangles.par_iter())
             .with_min_len(1 << 12)
             .for_each(|(t, moved)| *t = moved.vertices.map(|x| v(x.position)));
-        let corners = |r: u32| {
-            let t = scene
-                .triangles
-                .get(r as usize)
-                .filter(|_| R::SIMD_LEAVES && r & SPHERE_BIT == 0)?;
-            Some(t.vertices.map(|x| x.position.as_vec3().to_array()))
-        };
-        self.wide.refit(bvh, corners);
+        self.wide.refit(bvh, leaf_corners::<R>(&self.triangles));
     }
 }
 
