@@ -46,12 +46,51 @@ fn moving_scene() -> String {
     )
 }
 
-fn frames_equal_single_renders(backend: Backend, flag: &str) {
+/// Small triangles bunched about a point, each flying off its own way
+/// fast: refitted, the tree's boxes soon overlap everywhere, and its SAH
+/// cost passes the rebuild bound within a few frames.
+fn exploding_scene() -> String {
+    let mut state = 9u32;
+    let mut next = || {
+        state = state.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+        f64::from(state >> 8) / f64::from(1u32 << 24) - 0.5
+    };
+    let mut objects = Vec::new();
+    for _ in 0..60 {
+        let (x, y, z) = (next(), next(), next() - 6.0);
+        let corner = |dx: f64, dy: f64| {
+            format!(
+                "pos: {} {} {z}\nnor: 0 0 1\ndif: 0.8 0.5 0.2\nspe: 0.1 0.1 0.1\nshi: 4\n",
+                x + dx,
+                y + dy
+            )
+        };
+        objects.push(format!(
+            "triangle\n{}{}{}vel: {} {} {}\n",
+            corner(0.0, 0.0),
+            corner(0.1, 0.0),
+            corner(0.0, 0.1),
+            12.0 * next(),
+            12.0 * next(),
+            6.0 * next()
+        ));
+    }
+    objects.push("light\npos: 0 4 0\ncol: 1 1 1\n".into());
+    format!(
+        "{}\namb: 0.1 0.1 0.1\nfps: 8\n{}",
+        objects.len(),
+        objects.concat()
+    )
+}
+
+/// Renders `text`'s first `frames` frames as one animation on `backend`
+/// and checks each against the same frame rendered alone; returns the
+/// run's `-v` log.
+fn frames_equal_single_renders(text: &str, frames: u32, backend: Backend, flag: &str) -> String {
     let dir = tmp();
     let path = dir.path().join("moving.scene");
-    std::fs::write(&path, moving_scene()).expect("write scene");
+    std::fs::write(&path, text).expect("write scene");
     let scene = glint::scene::read_scene(&path).expect("parses");
-    let frames = 6u32;
     let out = glint(
         &[
             "render",
@@ -71,7 +110,7 @@ fn frames_equal_single_renders(backend: Backend, flag: &str) {
         ],
         dir.path(),
     );
-    let log = String::from_utf8_lossy(&out.stderr);
+    let log = String::from_utf8_lossy(&out.stderr).into_owned();
     assert!(out.status.success(), "{log}");
     // Frame 0 builds the tree; every later one refits it.
     let refits = log
@@ -113,11 +152,59 @@ fn frames_equal_single_renders(backend: Backend, flag: &str) {
         moved.insert(got.into_raw());
     }
     assert_eq!(moved.len(), frames as usize, "every frame should differ");
+    log
+}
+
+/// Each frame's phases in a `-v` log: whether it built its tree (`bvh`)
+/// or refitted it (`refit` alone), frame by frame.
+fn built_frames(log: &str) -> Vec<bool> {
+    let mut built = Vec::new();
+    // Up to the totals over all frames, which follow the last.
+    for line in log.lines().take_while(|l| !l.starts_with("all frames")) {
+        if line.starts_with("frame ") {
+            built.push(false);
+        } else if line.trim_start().starts_with("bvh ") {
+            if let Some(b) = built.last_mut() {
+                *b = true;
+            }
+        }
+    }
+    built
+}
+
+fn refits_a_moving_scene(backend: Backend, flag: &str) {
+    let log = frames_equal_single_renders(&moving_scene(), 6, backend, flag);
+    // Frame 0 builds the tree; every later one refits it.
+    let built = built_frames(&log);
+    assert_eq!(built, [true, false, false, false, false, false], "{log}");
+    let refits = log
+        .lines()
+        .filter(|l| l.trim_start().starts_with("refit "))
+        .count();
+    assert!(refits >= 5, "refitted frames: {refits}\n{log}");
+}
+
+/// A scene flying apart: a later frame finds its refitted tree past the
+/// bound and builds it again, and still equals its render alone.
+#[test]
+fn a_tree_grown_past_the_bound_is_built_again() {
+    let log = frames_equal_single_renders(&exploding_scene(), 8, Backend::Cpu, "cpu");
+    let built = built_frames(&log);
+    assert_eq!(built.len(), 8, "{log}");
+    assert!(built[0], "{log}");
+    assert!(
+        built[1..].contains(&true),
+        "no frame built its tree again: {built:?}\n{log}"
+    );
+    assert!(
+        built[1..].contains(&false),
+        "no frame refitted: {built:?}\n{log}"
+    );
 }
 
 #[test]
 fn refitted_frames_equal_single_renders_on_the_cpu() {
-    frames_equal_single_renders(Backend::Cpu, "cpu");
+    refits_a_moving_scene(Backend::Cpu, "cpu");
 }
 
 #[test]
@@ -125,5 +212,5 @@ fn refitted_frames_equal_single_renders_on_a_vulkan_device() {
     if gpu().is_none() {
         return;
     }
-    frames_equal_single_renders(Backend::Gpu, "gpu");
+    refits_a_moving_scene(Backend::Gpu, "gpu");
 }
