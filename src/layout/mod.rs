@@ -8,6 +8,7 @@
 //! 16-byte `vec3` alignment leaves no hidden padding.
 
 mod pack;
+mod refit;
 mod types;
 
 pub use pack::{padded, GpuScene};

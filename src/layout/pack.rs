@@ -55,7 +55,7 @@ pub struct GpuScene {
 /// The binary tree collapsed and quantised for the shader: a leaf lane
 /// names its first primitive reference (`leaf_runs` marks where each run
 /// ends).
-fn wide_nodes(bvh: &Bvh, leaf_order: bool) -> Vec<GpuWideNode> {
+pub(super) fn wide_nodes(bvh: &Bvh, leaf_order: bool) -> Vec<GpuWideNode> {
     use rayon::prelude::*;
     crate::bvh::wide::collapse_nodes(bvh, |leaf| leaf_word(leaf, leaf_order))
         .par_iter()
@@ -204,12 +204,64 @@ fn leaf_runs(bvh: &Bvh, leaf_order: bool) -> Vec<u32> {
     refs
 }
 
-fn f3(v: glam::DVec3) -> [f32; 3] {
+pub(super) fn f3(v: glam::DVec3) -> [f32; 3] {
     v.as_vec3().to_array()
 }
 
-fn f4(v: glam::DVec3) -> [f32; 4] {
+pub(super) fn f4(v: glam::DVec3) -> [f32; 4] {
     v.as_vec3().extend(0.0).to_array()
+}
+
+/// The lights, and the surfaces through each (`skips`, each light's run at
+/// its `skip_first`), as packed triangle indices where the triangles are in
+/// leaf order (`scene_triangles`).
+pub(super) fn pack_lights(
+    scene: &Scene,
+    bvh: &Bvh,
+    scene_triangles: &[u32],
+) -> (Vec<GpuLight>, Vec<u32>) {
+    // A scene triangle's packed index (only the skips need it).
+    let mut packed_index = Vec::new();
+    if !scene_triangles.is_empty() && !bvh.surfaces_at_lights.iter().all(Vec::is_empty) {
+        packed_index = vec![0; scene_triangles.len()];
+        for (i, &t) in scene_triangles.iter().enumerate() {
+            packed_index[t as usize] = i as u32;
+        }
+    }
+    let packed = |r: u32| packed_index.get(r as usize).copied().unwrap_or(r);
+    let mut skips = Vec::new();
+    let lights = scene
+        .lights
+        .iter()
+        .enumerate()
+        .map(|(i, l)| {
+            let through = bvh.surfaces_at_lights.get(i).map_or(&[][..], Vec::as_slice);
+            let skip_first = skips.len() as u32;
+            skips.extend(through.iter().map(|&r| packed(r)));
+            let mut g = GpuLight {
+                skip_first,
+                skip_count: through.len() as u32,
+                position: f3(l.position),
+                color: f3(l.color),
+                velocity: f3(l.velocity),
+                ..GpuLight::default()
+            };
+            match l.shape {
+                LightShape::Point => g.kind = LIGHT_POINT,
+                LightShape::Sphere { radius } => {
+                    g.kind = LIGHT_SPHERE;
+                    g.radius = radius as f32;
+                }
+                LightShape::Rect { edge_u, edge_v } => {
+                    g.kind = LIGHT_RECT;
+                    g.edge_u = f3(edge_u);
+                    g.edge_v = f3(edge_v);
+                }
+            }
+            g
+        })
+        .collect();
+    (lights, skips)
 }
 
 impl GpuScene {
@@ -293,47 +345,7 @@ impl GpuScene {
             },
             || (wide_nodes(bvh, leaf_order), leaf_runs(bvh, leaf_order)),
         );
-        // A scene triangle's packed index (only the skips need it).
-        let mut packed_index = Vec::new();
-        if !scene_triangles.is_empty() && !bvh.surfaces_at_lights.iter().all(Vec::is_empty) {
-            packed_index = vec![0; scene_triangles.len()];
-            for (i, &t) in scene_triangles.iter().enumerate() {
-                packed_index[t as usize] = i as u32;
-            }
-        }
-        let packed = |r: u32| packed_index.get(r as usize).copied().unwrap_or(r);
-        let mut skips = Vec::new();
-        let lights = scene
-            .lights
-            .iter()
-            .enumerate()
-            .map(|(i, l)| {
-                let through = bvh.surfaces_at_lights.get(i).map_or(&[][..], Vec::as_slice);
-                let skip_first = skips.len() as u32;
-                skips.extend(through.iter().map(|&r| packed(r)));
-                let mut g = GpuLight {
-                    skip_first,
-                    skip_count: through.len() as u32,
-                    position: f3(l.position),
-                    color: f3(l.color),
-                    velocity: f3(l.velocity),
-                    ..GpuLight::default()
-                };
-                match l.shape {
-                    LightShape::Point => g.kind = LIGHT_POINT,
-                    LightShape::Sphere { radius } => {
-                        g.kind = LIGHT_SPHERE;
-                        g.radius = radius as f32;
-                    }
-                    LightShape::Rect { edge_u, edge_v } => {
-                        g.kind = LIGHT_RECT;
-                        g.edge_u = f3(edge_u);
-                        g.edge_v = f3(edge_v);
-                    }
-                }
-                g
-            })
-            .collect();
+        let (lights, skips) = pack_lights(scene, bvh, &scene_triangles);
         let velocities = if scene.has_motion() {
             let s = scene.spheres.iter().map(|s| f4(s.velocity));
             s.chain(ordered().map(|t| f4(t.velocity))).collect()

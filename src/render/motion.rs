@@ -10,7 +10,6 @@ use super::output::RenderOutput;
 use super::region::Region;
 use super::renderer::{Packed, Prepared, Renderer};
 use crate::bvh::refit::REFIT_LIMIT;
-use crate::layout::GpuScene;
 use crate::scene::Scene;
 use crate::Error;
 
@@ -57,9 +56,8 @@ impl Renderer {
                 let bvh = &m.prepared.bvh;
                 timings.time("pack", || match &mut m.packed {
                     Packed::Cpu(geometry) => geometry.refit(&view, bvh),
-                    // The shader's tree is collapsed and quantised afresh:
-                    // its upload sends only the lists that changed.
-                    Packed::Gpu(packed) => *packed = GpuScene::pack(&view, bvh),
+                    // Its upload sends only the lists that changed.
+                    Packed::Gpu(packed) => packed.refit(&view, bvh),
                 });
                 m
             }
