@@ -375,8 +375,8 @@ impl Builder {
                 [Extent::of(&parts.src[..mid]), Extent::of(&parts.src[mid..])],
             );
         };
-        let on_axis = binning.axis(axis);
-        let left = |b: &Box3| on_axis.bin_of(b) <= plane;
+        // The bins' own arithmetic, so that each half gets what its count said.
+        let left = |b: &Box3| binning.bins_of(b)[axis] <= plane;
         let mid = bins.count[axis][..=plane].iter().map(|&c| c as usize).sum();
         let (dst_left, dst_right) = parts.dst.split_at_mut(mid);
         let (refs_left, refs_right) = parts.dst_refs.split_at_mut(mid);
@@ -524,16 +524,6 @@ impl Binning {
         [a, b, c]
     }
 
-    /// One axis of it, for the partition.
-    fn axis(&self, axis: usize) -> AxisBinning {
-        AxisBinning {
-            axis,
-            min: self.min[axis],
-            scale: self.scale[axis],
-            peel: self.peel.test(axis),
-        }
-    }
-
     fn bin(&self, boxes: &[Box3], bins: &mut Bins) {
         for b in boxes {
             let at = self.bins_of(b);
@@ -546,34 +536,6 @@ impl Binning {
                 bins.count[axis][k] += 1;
             }
         }
-    }
-}
-
-/// `Binning` on one axis.
-#[derive(Clone, Copy)]
-struct AxisBinning {
-    axis: usize,
-    min: f32,
-    scale: f32,
-    peel: bool,
-}
-
-impl AxisBinning {
-    /// `Binning::bins_of(b)[axis]`, with the same arithmetic on one lane.
-    #[inline(always)]
-    fn bin_of(&self, b: &Box3) -> usize {
-        let d = (b.min[self.axis] * 0.5 + b.max[self.axis] * 0.5) - self.min;
-        let last = (BIN_COUNT - 1) as f32;
-        let x = if self.peel {
-            if d > 0.0 {
-                last
-            } else {
-                0.0
-            }
-        } else {
-            (d * self.scale - 0.5).max(0.0).min(last)
-        };
-        ((x + ROUND).to_bits() & 0xff) as usize
     }
 }
 

@@ -263,6 +263,31 @@ impl WideBvh {
                 }
             });
     }
+
+    /// New boxes and corners for a tree whose binary tree was refitted
+    /// (`Bvh::refit`): each lane takes its binary node's box again, each
+    /// leaf block its triangles' corners, in the shape it has.
+    pub fn refit(&mut self, bvh: &Bvh, corners: impl Fn(u32) -> Option<[[f32; 3]; 3]> + Sync) {
+        use rayon::prelude::*;
+        let bin = &bvh.nodes;
+        self.nodes
+            .par_iter_mut()
+            .zip(&self.sources)
+            .with_min_len(1 << 10)
+            .for_each(|(node, sources)| {
+                for (lane, &k) in sources.iter().enumerate() {
+                    if k != EMPTY {
+                        let k = &bin[k as usize];
+                        for a in 0..3 {
+                            node.lo[a][lane] = k.min[a];
+                            node.hi[a][lane] = k.max[a];
+                        }
+                    }
+                }
+            });
+        // The spans are the shape's, so each block takes the same lanes.
+        self.fill_leaves(bvh, corners);
+    }
 }
 
 /// Fills `Node4::leaves`: each node's leaves were numbered together
@@ -310,52 +335,6 @@ fn collapse_with_sources(
 struct Collapsed {
     nodes: Vec<Node4>,
     sources: Vec<[u32; 4]>,
-}
-
-impl WideBvh {
-    /// New boxes and corners for a tree whose binary tree was refitted
-    /// (`Bvh::refit`): each lane takes its binary node's box again, each
-    /// leaf block its triangles' corners, in the shape it has.
-    pub fn refit(&mut self, bvh: &Bvh, corners: impl Fn(u32) -> Option<[[f32; 3]; 3]> + Sync) {
-        use rayon::prelude::*;
-        let bin = &bvh.nodes;
-        self.nodes
-            .par_iter_mut()
-            .zip(&self.sources)
-            .with_min_len(1 << 10)
-            .for_each(|(node, sources)| {
-                for (lane, &k) in sources.iter().enumerate() {
-                    if k != EMPTY {
-                        let k = &bin[k as usize];
-                        for a in 0..3 {
-                            node.lo[a][lane] = k.min[a];
-                            node.hi[a][lane] = k.max[a];
-                        }
-                    }
-                }
-            });
-        self.leaves
-            .par_iter_mut()
-            .with_min_len(1 << 10)
-            .for_each(|block| {
-                if !block.simd() {
-                    return;
-                }
-                for lane in 0..4 {
-                    let r = block.prims[lane];
-                    if r == NONE {
-                        continue;
-                    }
-                    if let Some(tri) = corners(r) {
-                        for (corner, q) in tri.iter().enumerate() {
-                            for (axis, &x) in q.iter().enumerate() {
-                                block.p[axis][corner][lane] = x;
-                            }
-                        }
-                    }
-                }
-            });
-    }
 }
 
 fn collapse_node(
