@@ -13,7 +13,7 @@
 mod build;
 pub mod lights_on_surfaces;
 pub mod node;
-pub mod refit;
+pub(crate) mod refit;
 pub mod wide;
 
 use glam::{DVec3, Vec3A};

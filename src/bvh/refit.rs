@@ -20,7 +20,7 @@ use crate::scene::{Effects, Scene};
 /// it by less than a percent a frame, so the wave never rebuilds; a scene
 /// whose parts fly apart crosses it within a few frames, when each
 /// further frame would trace through ever larger boxes.
-pub const REFIT_LIMIT: f64 = 1.5;
+pub(crate) const REFIT_LIMIT: f64 = 1.5;
 
 impl Bvh {
     /// Refits the tree `Bvh::for_render(earlier, effects)` built to

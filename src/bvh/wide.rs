@@ -201,7 +201,7 @@ impl WideBvh {
     /// The tree's shape alone (`collapse` less the leaf blocks' corners,
     /// which `fill_leaves` adds): a caller can make the corners' source
     /// beside it.
-    pub fn shape(bvh: &Bvh) -> WideBvh {
+    pub(crate) fn shape(bvh: &Bvh) -> WideBvh {
         let mut spans = Vec::with_capacity(bvh.nodes.len() / 2 + 1);
         let (nodes, sources) = collapse_with_sources(bvh, |n| {
             spans.push(LeafSpan {
@@ -228,7 +228,7 @@ impl WideBvh {
     /// Each leaf of up to four triangles as a block for the SIMD test,
     /// `corners` giving a reference's triangle in f32 (None: a sphere, or
     /// no SIMD leaves).
-    pub fn fill_leaves(
+    pub(crate) fn fill_leaves(
         &mut self,
         bvh: &Bvh,
         corners: impl Fn(u32) -> Option<[[f32; 3]; 3]> + Sync,
@@ -267,7 +267,11 @@ impl WideBvh {
     /// New boxes and corners for a tree whose binary tree was refitted
     /// (`Bvh::refit`): each lane takes its binary node's box again, each
     /// leaf block its triangles' corners, in the shape it has.
-    pub fn refit(&mut self, bvh: &Bvh, corners: impl Fn(u32) -> Option<[[f32; 3]; 3]> + Sync) {
+    pub(crate) fn refit(
+        &mut self,
+        bvh: &Bvh,
+        corners: impl Fn(u32) -> Option<[[f32; 3]; 3]> + Sync,
+    ) {
         use rayon::prelude::*;
         let bin = &bvh.nodes;
         self.nodes

@@ -152,7 +152,7 @@ impl Geometry {
     /// The geometry of the same primitives moved (`Scene::at_time` of the
     /// scene it was made for, in view space), `bvh` refitted to them
     /// (`Bvh::refit`): see `CpuGeometry::refit`.
-    pub fn refit(&mut self, scene: &Scene, bvh: &Bvh) {
+    pub(crate) fn refit(&mut self, scene: &Scene, bvh: &Bvh) {
         match self {
             Geometry::F32(g) => g.refit(scene, bvh),
             Geometry::F64(g) => g.refit(scene, bvh),

@@ -19,7 +19,7 @@ impl GpuScene {
     /// them. The result is what `GpuScene::pack(scene, bvh)` makes, up to
     /// the four-wide tree's shape, which is collapsed afresh from the
     /// refitted boxes.
-    pub fn refit(&mut self, scene: &Scene, bvh: &Bvh) {
+    pub(crate) fn refit(&mut self, scene: &Scene, bvh: &Bvh) {
         let scene = &*scene.in_render_space(bvh.scale);
         for (packed, s) in self.spheres.iter_mut().zip(&scene.spheres) {
             packed.center = f3(s.center);

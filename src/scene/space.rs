@@ -39,7 +39,7 @@ impl Scene {
     /// `mapped`, written over `out`, whose lists keep their memory: an
     /// animation's frames reuse one scene's instead of faulting in fresh
     /// pages for each (a moving 2M-triangle scene is 400 MB a frame).
-    pub fn mapped_into(&self, map: &(impl SpaceMap + Sync), out: &mut Scene) {
+    pub(crate) fn mapped_into(&self, map: &(impl SpaceMap + Sync), out: &mut Scene) {
         use rayon::prelude::*;
         // Every field named, so that a new one is not forgotten here; the
         // primitives mapped as they are copied, on every thread.
@@ -139,7 +139,7 @@ impl Scene {
 
     /// `at_time_in_view_space`, written over `out` (`mapped_into`): what an
     /// animation's frame renders.
-    pub fn at_time_in_view_space_into(&self, time: f64, out: &mut Scene) {
+    pub(crate) fn at_time_in_view_space_into(&self, time: f64, out: &mut Scene) {
         struct View(f64, Option<(CameraSpec, [DVec3; 3])>);
         impl SpaceMap for View {
             fn point(&self, p: DVec3, velocity: DVec3) -> DVec3 {

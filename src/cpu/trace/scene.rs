@@ -234,7 +234,7 @@ impl<R: Real> CpuGeometry<R> {
     /// `bvh` refitted to them: new corners, sphere centres and boxes, in
     /// the wide tree's shape. Normals, materials, radii and velocities are
     /// what moving leaves them, so they are kept.
-    pub fn refit(&mut self, scene: &Scene, bvh: &Bvh) {
+    pub(crate) fn refit(&mut self, scene: &Scene, bvh: &Bvh) {
         use rayon::prelude::*;
         let scene = &*scene.in_render_space(bvh.scale);
         let v = R::v3_from_f64;
