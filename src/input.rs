@@ -166,10 +166,20 @@ pub enum Kind {
 /// Reads a whole input under `--max-input`, a chunk at a time. Text is
 /// checked as it arrives, so a device or pipe of binary data is refused at
 /// its first NUL byte, never read to the end.
-pub fn read_all(mut reader: impl Read, kind: Kind) -> Result<Vec<u8>, InputError> {
+pub fn read_all(reader: impl Read, kind: Kind) -> Result<Vec<u8>, InputError> {
+    read_rest(reader, kind, Vec::new())
+}
+
+/// `read_all` after `buf`'s bytes (checked already), appending to it: a
+/// caller that knows the length reserves it, and the bytes are never
+/// copied to grow the buffer.
+pub fn read_rest(
+    mut reader: impl Read,
+    kind: Kind,
+    mut buf: Vec<u8>,
+) -> Result<Vec<u8>, InputError> {
     const CHUNK: usize = 1 << 16;
     let limit = max_input();
-    let mut buf = Vec::new();
     loop {
         let start = buf.len();
         let more = fill(&mut reader, &mut buf, start + CHUNK)?;
@@ -197,7 +207,7 @@ pub fn read_path(path: &Path, kind: Kind) -> Result<Vec<u8>, InputError> {
 }
 
 fn memchr_nul(bytes: &[u8]) -> Option<usize> {
-    bytes.iter().position(|&b| b == 0)
+    memchr::memchr(0, bytes)
 }
 
 /// Parses a byte count: a whole number with an optional K, M, G or T

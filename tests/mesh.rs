@@ -600,3 +600,65 @@ fn real_models_render_alike_on_gpu_and_cpu() {
         assert_backends_agree(file, &scene.in_view_space(), 96, 72, 5);
     }
 }
+
+/// PLY's `tristrips` (as some scanned models ship): each run between `-1`s
+/// makes a triangle of every three vertices in a row, every second one
+/// turned so all wind alike; the repeated vertices that join strips make
+/// no triangle and no warning.
+#[test]
+fn ply_triangle_strips_wind_alike() {
+    let dir = tempfile::tempdir().expect("temp dir");
+    let g = grid();
+    let row = |j: u32| (0..3).flat_map(move |i| [3 * (j + 1) + i, 3 * j + i]);
+    let restarted: Vec<i64> = row(0)
+        .map(i64::from)
+        .chain([-1])
+        .chain(row(1).map(i64::from))
+        .collect();
+    let stitched: Vec<i64> = row(0).chain([2, 6]).chain(row(1)).map(i64::from).collect();
+    for (name, strip) in [("restarted", restarted), ("stitched", stitched)] {
+        let mut s = format!(
+            "ply\nformat ascii 1.0\nelement vertex {}\nproperty double x\nproperty double y\n\
+             property double z\nelement tristrips 1\nproperty list int int vertex_indices\n\
+             end_header\n",
+            g.positions.len()
+        );
+        for p in &g.positions {
+            s += &format!("{} {} {}\n", p.x, p.y, p.z);
+        }
+        s += &format!("{}", strip.len());
+        for i in &strip {
+            s += &format!(" {i}");
+        }
+        s += "\n";
+        let file = format!("{name}.ply");
+        write(dir.path(), &file, s.as_bytes());
+        let scene_path = write(
+            dir.path(),
+            &format!("{name}.scene"),
+            format!("1\namb: 0 0 0\nmesh file: {file} dif: 1 1 1 spe: 0 0 0 shi: 1\n").as_bytes(),
+        );
+        let scene = read_scene(&scene_path).expect("strips load");
+        assert_eq!(scene.triangles.len(), 8, "{name}: two rows of two quads");
+        assert!(
+            scene.meshes[0].report.is_empty(),
+            "{name}: {:?}",
+            scene.meshes[0].report
+        );
+        let mut area = 0.0;
+        for t in &scene.triangles {
+            let [a, b, c] = t.vertices.map(|v| v.position);
+            let n = (b - a).cross(c - a);
+            assert!(
+                n.z > 0.0,
+                "{name}: a triangle winds the other way: {a} {b} {c}"
+            );
+            area += n.length() / 2.0;
+        }
+        // The grid bends a little out of its plane: a few percent more.
+        assert!(
+            (7.5..7.8).contains(&area),
+            "{name}: covers {area}, not the grid"
+        );
+    }
+}

@@ -148,6 +148,8 @@ fn model_as_scene(args: &ConvertArgs) -> Result<glint::scene::Scene, glint::Erro
         triangles: scene.triangles.len(),
         bounds: scene.bounds(),
         load_time: start.elapsed(),
+        read_time: std::time::Duration::ZERO,
+        normals_time: std::time::Duration::ZERO,
         report: std::mem::take(&mut mesh.report),
     });
     Ok(scene)

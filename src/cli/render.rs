@@ -124,7 +124,8 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
     let result = renderer.run(&job, &sink, &watch);
     watch.bar.finish_and_clear();
     let mut done = result.with_context(|| format!("rendering {}", args.scene.display()))?;
-    done.output.timings.phases.insert(0, ("parse", parse_time));
+    let phases = load_phases(&scene, parse_time);
+    done.output.timings.phases.splice(0..0, phases);
     let say = Say {
         to_stderr: to_stdout,
     };
@@ -204,4 +205,18 @@ impl Watch for Bar {
         self.bar.set_message(line);
         self.bar.tick();
     }
+}
+
+/// The scene's arrival as `-v`'s first phases: `read` (model files' bytes),
+/// `parse` (the scene file and the models' contents) and `normals` (smooth
+/// normals, and meshes made the scene's triangles); the first and last only
+/// where the scene names model files.
+fn load_phases(scene: &glint::scene::Scene, total: Duration) -> Vec<(&'static str, Duration)> {
+    let read: Duration = scene.meshes.iter().map(|m| m.read_time).sum();
+    let normals: Duration = scene.meshes.iter().map(|m| m.normals_time).sum();
+    let parse = total.saturating_sub(read + normals);
+    if scene.meshes.is_empty() {
+        return vec![("parse", parse)];
+    }
+    vec![("read", read), ("parse", parse), ("normals", normals)]
 }

@@ -16,6 +16,7 @@ mod mtl;
 mod obj;
 mod off;
 mod ply;
+mod ply_fast;
 mod polygon;
 pub mod report;
 mod source;
@@ -158,17 +159,25 @@ pub const EXTENSIONS: &str = ".obj, .ply, .off, .stl, .gltf or .glb";
 /// Reads a model file, its format chosen by extension (STL's encoding and
 /// GLB by content), with bounded memory whatever the file is.
 pub fn load(path: &Path) -> Result<Mesh, MeshError> {
+    load_timed(path).map(|(mesh, _)| mesh)
+}
+
+/// `load`, and how long of it reading the file's bytes took (the rest is
+/// parsing), for `-v`'s phases.
+pub(crate) fn load_timed(path: &Path) -> Result<(Mesh, std::time::Duration), MeshError> {
     let format = Format::of(path).ok_or_else(|| MeshError {
         path: path.to_path_buf(),
         at: None,
         message: format!("unknown model format; use an {EXTENSIONS} file"),
     })?;
+    let start = std::time::Instant::now();
     let src = source::read(path, format)?;
+    let read = start.elapsed();
     let mut mesh = parse(&src.bytes, src.format, path, Refs::Disk)?;
     let mut report = src.report;
     report.merge(std::mem::take(&mut mesh.report));
     mesh.report = report;
-    Ok(mesh)
+    Ok((mesh, read))
 }
 
 /// Parses a model from its bytes; `path` names it in messages and is where
@@ -245,25 +254,42 @@ impl Mesh {
     /// on how a surface is cut into triangles. Zero where every face at a
     /// vertex is degenerate (the renderers then use the flat normal).
     pub fn smooth_normals(&self) -> Vec<DVec3> {
-        let mut sums = vec![DVec3::ZERO; self.positions.len()];
-        for f in &self.faces {
-            let p = f.positions.map(|i| self.positions[i as usize]);
-            let n = (p[1] - p[0]).cross(p[2] - p[0]);
-            let len = n.length();
-            if len == 0.0 || !len.is_finite() {
-                continue;
-            }
-            let n = n / len;
-            for k in 0..3 {
-                let a = p[(k + 1) % 3] - p[k];
-                let b = p[(k + 2) % 3] - p[k];
-                let angle = a.angle_between(b);
-                if angle.is_finite() {
-                    sums[f.positions[k] as usize] += n * angle;
+        use rayon::prelude::*;
+        // Each thread owns a range of vertices and walks every face for the
+        // corners in it, so each vertex sums its faces in file order, as one
+        // thread would: the same bits on any number of threads.
+        let n = self.positions.len();
+        let span = n.div_ceil(rayon::current_num_threads().max(1)).max(1 << 12);
+        let mut sums = vec![DVec3::ZERO; n];
+        sums.par_chunks_mut(span).enumerate().for_each(|(k, sums)| {
+            let lo = (k * span) as u32;
+            let hi = lo + sums.len() as u32;
+            let mine = |i: u32| (lo..hi).contains(&i);
+            for f in &self.faces {
+                if !f.positions.iter().any(|&i| mine(i)) {
+                    continue;
+                }
+                let p = f.positions.map(|i| self.positions[i as usize]);
+                let n = (p[1] - p[0]).cross(p[2] - p[0]);
+                let len = n.length();
+                if len == 0.0 || !len.is_finite() {
+                    continue;
+                }
+                let n = n / len;
+                for k in 0..3 {
+                    if !mine(f.positions[k]) {
+                        continue;
+                    }
+                    let a = p[(k + 1) % 3] - p[k];
+                    let b = p[(k + 2) % 3] - p[k];
+                    let angle = a.angle_between(b);
+                    if angle.is_finite() {
+                        sums[(f.positions[k] - lo) as usize] += n * angle;
+                    }
                 }
             }
-        }
-        sums.into_iter()
+        });
+        sums.into_par_iter()
             .map(|s| s.try_normalize().unwrap_or(DVec3::ZERO))
             .collect()
     }
@@ -280,5 +306,78 @@ impl Mesh {
     /// file has no vertex colours and no material for it.
     pub fn missing_material(&self) -> bool {
         self.colors.is_empty() && self.faces.iter().any(|f| f.material.is_none())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The angle-weighted sums one face after another, as one thread
+    /// would make them.
+    fn sequential(mesh: &Mesh) -> Vec<DVec3> {
+        let mut sums = vec![DVec3::ZERO; mesh.positions.len()];
+        for f in &mesh.faces {
+            let p = f.positions.map(|i| mesh.positions[i as usize]);
+            let n = (p[1] - p[0]).cross(p[2] - p[0]);
+            let len = n.length();
+            if len == 0.0 || !len.is_finite() {
+                continue;
+            }
+            for k in 0..3 {
+                let angle = (p[(k + 1) % 3] - p[k]).angle_between(p[(k + 2) % 3] - p[k]);
+                if angle.is_finite() {
+                    sums[f.positions[k] as usize] += n / len * angle;
+                }
+            }
+        }
+        sums.into_iter()
+            .map(|s| s.try_normalize().unwrap_or(DVec3::ZERO))
+            .collect()
+    }
+
+    #[test]
+    fn smooth_normals_are_the_same_bits_on_any_number_of_threads() {
+        // A bumpy 120x120 height field, its faces in a shuffled order so
+        // that faces cross the threads' vertex ranges.
+        let n = 120u32;
+        let mut mesh = Mesh::default();
+        for j in 0..n {
+            for i in 0..n {
+                let (x, y) = (f64::from(i), f64::from(j));
+                mesh.positions
+                    .push(DVec3::new(x, y, (x * 0.37).sin() * (y * 0.21).cos()));
+            }
+        }
+        for j in 0..n - 1 {
+            for i in 0..n - 1 {
+                let v = j * n + i;
+                for positions in [[v, v + 1, v + n + 1], [v, v + n + 1, v + n]] {
+                    mesh.faces.push(Face {
+                        positions,
+                        normals: None,
+                        material: None,
+                    });
+                }
+            }
+        }
+        let len = mesh.faces.len();
+        for k in 0..len {
+            mesh.faces.swap(k, (k * 7919) % len);
+        }
+        let want = sequential(&mesh);
+        for threads in [1, 2, 3, 8] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let got = pool.install(|| mesh.smooth_normals());
+            assert!(
+                got.iter()
+                    .zip(&want)
+                    .all(|(a, b)| a.to_array().map(f64::to_bits) == b.to_array().map(f64::to_bits)),
+                "{threads} threads"
+            );
+        }
     }
 }

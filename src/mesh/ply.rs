@@ -1,10 +1,13 @@
 //! PLY (Stanford polygon files), ASCII and binary of either byte order:
 //! the `vertex` element's `x y z`, optional `nx ny nz` and `red green blue`
-//! (integers 0-255 or floats 0-1), and the `face` element's
-//! `vertex_indices` (or `vertex_index`) lists. Other elements and
-//! properties are read past. Normals that are not finite are repaired
-//! (`build`), as are degenerate faces; a file of points only loads with a
-//! warning from the scene.
+//! (integers 0-255 or floats 0-1), the `face` element's
+//! `vertex_indices` (or `vertex_index`) lists, and the `tristrips`
+//! element's strips (`-1` restarting one), in which some scanned models
+//! ship. Other elements and properties are read past. Normals that are
+//! not finite are repaired (`build`), as are degenerate faces; a file of
+//! points only loads with a warning from the scene. Binary files in the
+//! layout most tools write are read by `ply_fast`, which gives the same
+//! mesh.
 
 use std::path::Path;
 
@@ -15,7 +18,7 @@ use super::text::Text;
 use super::{Mesh, MeshError};
 
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
-enum Scalar {
+pub(super) enum Scalar {
     I8,
     U8,
     I16,
@@ -41,7 +44,7 @@ impl Scalar {
         })
     }
 
-    fn size(self) -> usize {
+    pub(super) fn size(self) -> usize {
         match self {
             Scalar::I8 | Scalar::U8 => 1,
             Scalar::I16 | Scalar::U16 => 2,
@@ -50,24 +53,46 @@ impl Scalar {
         }
     }
 
-    fn is_integer(self) -> bool {
+    /// The value in the first `size()` bytes of `bytes` (which holds at
+    /// least that many), as f64: exact for every type.
+    #[inline]
+    pub(super) fn decode(self, bytes: &[u8], big: bool) -> f64 {
+        let mut b = [0u8; 8];
+        let n = self.size();
+        b[..n].copy_from_slice(&bytes[..n]);
+        if big {
+            b[..n].reverse();
+        }
+        match self {
+            Scalar::I8 => f64::from(b[0] as i8),
+            Scalar::U8 => f64::from(b[0]),
+            Scalar::I16 => f64::from(i16::from_le_bytes([b[0], b[1]])),
+            Scalar::U16 => f64::from(u16::from_le_bytes([b[0], b[1]])),
+            Scalar::I32 => f64::from(i32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+            Scalar::U32 => f64::from(u32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+            Scalar::F32 => f64::from(f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
+            Scalar::F64 => f64::from_le_bytes(b),
+        }
+    }
+
+    pub(super) fn is_integer(self) -> bool {
         !matches!(self, Scalar::F32 | Scalar::F64)
     }
 }
 
 #[derive(Clone, Debug)]
-struct Property {
-    name: Vec<u8>,
+pub(super) struct Property {
+    pub name: Vec<u8>,
     /// For a list: the count's type, then the items' type.
-    list: Option<Scalar>,
-    ty: Scalar,
+    pub list: Option<Scalar>,
+    pub ty: Scalar,
 }
 
 #[derive(Clone, Debug)]
-struct Element {
-    name: Vec<u8>,
-    count: usize,
-    properties: Vec<Property>,
+pub(super) struct Element {
+    pub name: Vec<u8>,
+    pub count: usize,
+    pub properties: Vec<Property>,
 }
 
 #[derive(Clone, Copy, PartialEq, Eq)]
@@ -118,22 +143,8 @@ impl Reader<'_> {
                         message: format!("the file ends inside {what}"),
                     });
                 };
-                let mut b = [0u8; 8];
-                b[..n].copy_from_slice(bytes);
-                if *big {
-                    b[..n].reverse();
-                }
                 *pos += n;
-                let v = match ty {
-                    Scalar::I8 => f64::from(b[0] as i8),
-                    Scalar::U8 => f64::from(b[0]),
-                    Scalar::I16 => f64::from(i16::from_le_bytes([b[0], b[1]])),
-                    Scalar::U16 => f64::from(u16::from_le_bytes([b[0], b[1]])),
-                    Scalar::I32 => f64::from(i32::from_le_bytes([b[0], b[1], b[2], b[3]])),
-                    Scalar::U32 => f64::from(u32::from_le_bytes([b[0], b[1], b[2], b[3]])),
-                    Scalar::F32 => f64::from(f32::from_le_bytes([b[0], b[1], b[2], b[3]])),
-                    Scalar::F64 => f64::from_le_bytes(b),
-                };
+                let v = ty.decode(bytes, *big);
                 if !v.is_finite() && !any {
                     return Err(self.error(format!("{what} is not a finite number")));
                 }
@@ -162,11 +173,42 @@ impl Reader<'_> {
 }
 
 pub fn parse(src: &[u8], path: &Path) -> Result<Mesh, MeshError> {
+    parse_with(src, path, true)
+}
+
+/// `parse` by the general reader alone, for the tests that hold the fast
+/// one to it.
+#[cfg(test)]
+pub(super) fn parse_general(src: &[u8], path: &Path) -> Result<Mesh, MeshError> {
+    parse_with(src, path, false)
+}
+
+/// Whether the fast reader took this file (for the tests).
+#[cfg(test)]
+pub(super) fn fast_took(src: &[u8], path: &Path) -> bool {
+    let mut t = Text::new(src, path);
+    t.token();
+    match header(&mut t) {
+        Ok((Encoding::Ascii, _)) | Err(_) => false,
+        Ok((e, elements)) => {
+            super::ply_fast::read(src, t.offset(), e == Encoding::Big, &elements).is_some()
+        }
+    }
+}
+
+fn parse_with(src: &[u8], path: &Path, fast: bool) -> Result<Mesh, MeshError> {
     let mut t = Text::new(src, path);
     if t.token() != Some(b"ply") {
         return Err(t.error("expected the header `ply`"));
     }
     let (encoding, elements) = header(&mut t)?;
+    if fast && encoding != Encoding::Ascii {
+        if let Some(mesh) =
+            super::ply_fast::read(src, t.offset(), encoding == Encoding::Big, &elements)
+        {
+            return Ok(mesh);
+        }
+    }
     let mut r = match encoding {
         Encoding::Ascii => Reader::Ascii(t),
         e => Reader::Binary {
@@ -268,47 +310,93 @@ fn header(t: &mut Text) -> Result<(Encoding, Vec<Element>), MeshError> {
     Ok((encoding, elements))
 }
 
+/// What each property of an element is for: which hold a vertex's
+/// position, normal and colour, and which list a face's corners.
+pub(super) struct Roles {
+    pub is_vertex: bool,
+    pub is_face: bool,
+    pub xyz: [Option<usize>; 3],
+    pub nxyz: [Option<usize>; 3],
+    pub rgb: [Option<usize>; 3],
+    pub indices: Option<usize>,
+    pub has_normals: bool,
+    pub has_colors: bool,
+    /// Integer colours are 0-255 levels, float ones 0-1.
+    pub color_levels: f64,
+    /// Per property: non-finite values are repaired or dropped by `build`
+    /// with warnings (normals, positions); other values must be finite.
+    pub repaired: Vec<bool>,
+}
+
+impl Roles {
+    pub fn of(element: &Element) -> Roles {
+        let is_vertex = element.name == b"vertex";
+        let is_face = element.name == b"face";
+        let find = |n: &[&[u8]]| {
+            element
+                .properties
+                .iter()
+                .position(|p| n.contains(&p.name.as_slice()))
+        };
+        let xyz = [find(&[b"x"]), find(&[b"y"]), find(&[b"z"])];
+        let nxyz = [find(&[b"nx"]), find(&[b"ny"]), find(&[b"nz"])];
+        let rgb = [
+            find(&[b"red", b"r", b"diffuse_red"]),
+            find(&[b"green", b"g", b"diffuse_green"]),
+            find(&[b"blue", b"b", b"diffuse_blue"]),
+        ];
+        let has_normals = is_vertex && nxyz.iter().all(Option::is_some);
+        let repaired = (0..element.properties.len())
+            .map(|k| {
+                (has_normals && nxyz.contains(&Some(k))) || (is_vertex && xyz.contains(&Some(k)))
+            })
+            .collect();
+        let color_levels = rgb[0].map_or(1.0, |i| {
+            if element.properties[i].ty.is_integer() {
+                255.0
+            } else {
+                1.0
+            }
+        });
+        Roles {
+            is_vertex,
+            is_face,
+            xyz,
+            nxyz,
+            rgb,
+            indices: find(&[b"vertex_indices", b"vertex_index"]),
+            has_normals,
+            has_colors: is_vertex && rgb.iter().all(Option::is_some),
+            color_levels,
+            repaired,
+        }
+    }
+}
+
 /// Every item of `element`: vertices' positions, normals and colours
 /// into the mesh, faces' corner lists as polygons.
 fn read_element(r: &mut Reader, element: &Element, b: &mut Builder) -> Result<(), MeshError> {
     let mut corners: Vec<u32> = Vec::new();
-    let is_vertex = element.name == b"vertex";
-    let is_face = element.name == b"face";
-    let find = |n: &[&[u8]]| {
-        element
-            .properties
-            .iter()
-            .position(|p| n.contains(&p.name.as_slice()))
-    };
-    let xyz = [find(&[b"x"]), find(&[b"y"]), find(&[b"z"])];
-    let nxyz = [find(&[b"nx"]), find(&[b"ny"]), find(&[b"nz"])];
-    let rgb = [
-        find(&[b"red", b"r", b"diffuse_red"]),
-        find(&[b"green", b"g", b"diffuse_green"]),
-        find(&[b"blue", b"b", b"diffuse_blue"]),
-    ];
-    let indices = find(&[b"vertex_indices", b"vertex_index"]);
+    let Roles {
+        is_vertex,
+        is_face,
+        xyz,
+        nxyz,
+        rgb,
+        indices,
+        has_normals,
+        has_colors,
+        color_levels,
+        repaired,
+    } = Roles::of(element);
     if is_vertex && xyz.iter().any(Option::is_none) {
         return Err(r.error("the vertex element has no x, y and z".into()));
     }
-    if is_face && indices.is_none() {
-        return Err(r.error("the face element has no vertex_indices list".into()));
+    let is_strips = element.name == b"tristrips";
+    if (is_face || is_strips) && indices.is_none() {
+        let name = String::from_utf8_lossy(&element.name);
+        return Err(r.error(format!("the {name} element has no vertex_indices list")));
     }
-    let has_normals = is_vertex && nxyz.iter().all(Option::is_some);
-    let has_colors = is_vertex && rgb.iter().all(Option::is_some);
-    // Non-finite normals and positions are repaired or dropped by
-    // `build`, with warnings; other values must be finite.
-    let repaired: Vec<bool> = (0..element.properties.len())
-        .map(|k| (has_normals && nxyz.contains(&Some(k))) || (is_vertex && xyz.contains(&Some(k))))
-        .collect();
-    // Integer colours are 0-255 levels, float ones 0-1.
-    let color_levels = rgb[0].map_or(1.0, |i| {
-        if element.properties[i].ty.is_integer() {
-            255.0
-        } else {
-            1.0
-        }
-    });
     let names: Vec<String> = element
         .properties
         .iter()
@@ -323,23 +411,33 @@ fn read_element(r: &mut Reader, element: &Element, b: &mut Builder) -> Result<()
                 None => values[k] = r.value(p.ty, name, repaired[k])?,
                 Some(count_ty) => {
                     let n = r.value(count_ty, &format!("the length of {name}"), false)?;
-                    if !(0.0..=1e6).contains(&n) || n.fract() != 0.0 {
+                    // A strip list holds a whole model; each item it
+                    // claims must still be in the file, so memory stays
+                    // bounded by the file's size.
+                    let most = if is_strips { 4e9 } else { 1e6 };
+                    if !(0.0..=most).contains(&n) || n.fract() != 0.0 {
                         return Err(r.error(format!("a list of {n} items in {name}")));
                     }
-                    let take = is_face && Some(k) == indices;
+                    let take = (is_face || is_strips) && Some(k) == indices;
                     corners.clear();
                     for _ in 0..n as usize {
                         let v = r.value(p.ty, name, false)?;
-                        if take {
+                        if take && is_strips && v == -1.0 {
+                            corners.push(RESTART);
+                        } else if take {
                             if v < 0.0 || v.fract() != 0.0 {
                                 return Err(r.error(format!(
                                     "vertex index {v} is not a whole number from 0"
                                 )));
                             }
-                            corners.push(v.min(f64::from(u32::MAX)) as u32);
+                            corners.push(v.min(f64::from(RESTART - 1)) as u32);
                         }
                     }
-                    if take {
+                    if take && is_strips {
+                        if !strips(&corners, b, at) {
+                            return Err(r.error("more than 4 billion face corners".into()));
+                        }
+                    } else if take {
                         if b.corner_count() + corners.len() >= u32::MAX as usize {
                             return Err(r.error("more than 4 billion face corners".into()));
                         }
@@ -360,4 +458,32 @@ fn read_element(r: &mut Reader, element: &Element, b: &mut Builder) -> Result<()
         }
     }
     Ok(())
+}
+
+/// A `tristrips` list's restart (its `-1`).
+const RESTART: u32 = u32::MAX;
+
+/// A `tristrips` list as triangles: each run between restarts makes one
+/// from every three vertices in a row, every second one turned so that all
+/// wind alike. Triangles that repeat a vertex are how strips turn corners
+/// and join: they are skipped without a warning. False past 4 billion
+/// corners.
+fn strips(items: &[u32], b: &mut Builder, at: Loc) -> bool {
+    for run in items.split(|&i| i == RESTART) {
+        for (k, w) in run.windows(3).enumerate() {
+            let t = if k % 2 == 0 {
+                [w[0], w[1], w[2]]
+            } else {
+                [w[1], w[0], w[2]]
+            };
+            if t[0] == t[1] || t[1] == t[2] || t[2] == t[0] {
+                continue;
+            }
+            if b.corner_count() + 3 >= u32::MAX as usize {
+                return false;
+            }
+            b.polygon(t.map(|c| (c, None)), None, at);
+        }
+    }
+    true
 }

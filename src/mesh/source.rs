@@ -49,13 +49,28 @@ fn input_error(path: &Path, e: InputError) -> MeshError {
 /// Reads `path` for `format` (chosen by extension).
 pub fn read(path: &Path, format: Format) -> Result<Source, MeshError> {
     let file = std::fs::File::open(path).map_err(|e| input_error(path, e.into()))?;
-    read_from(file, path, format)
+    // A regular file's length, so its bytes land in one buffer of the
+    // right size (a pipe or device says 0 and grows as it comes).
+    let len = file
+        .metadata()
+        .map_or(0, |m| m.len())
+        .min(input::max_input());
+    read_sized(file, path, format, usize::try_from(len).unwrap_or(0))
 }
 
 /// `read` from any reader; `path` names it in messages.
 pub fn read_from(reader: impl Read, path: &Path, format: Format) -> Result<Source, MeshError> {
+    read_sized(reader, path, format, 0)
+}
+
+fn read_sized(
+    reader: impl Read,
+    path: &Path,
+    format: Format,
+    len: usize,
+) -> Result<Source, MeshError> {
     let mut r = Limited::max(reader);
-    let mut head = Vec::new();
+    let mut head = Vec::with_capacity(len.saturating_add(1));
     input::fill(&mut r, &mut head, 84).map_err(|e| input_error(path, e.into()))?;
     let mut report = Report::default();
     // A GLB named .gltf (or the other way round) is read for what it is.
@@ -91,7 +106,7 @@ pub fn read_from(reader: impl Read, path: &Path, format: Format) -> Result<Sourc
 }
 
 /// `head` and the rest of the input.
-fn rest(r: impl Read, mut head: Vec<u8>, kind: Kind, path: &Path) -> Result<Vec<u8>, MeshError> {
+fn rest(r: impl Read, head: Vec<u8>, kind: Kind, path: &Path) -> Result<Vec<u8>, MeshError> {
     if let Kind::Text { what } = kind {
         if let Some(i) = head.iter().position(|&b| b == 0) {
             return Err(input_error(
@@ -103,16 +118,7 @@ fn rest(r: impl Read, mut head: Vec<u8>, kind: Kind, path: &Path) -> Result<Vec<
             ));
         }
     }
-    let tail = input::read_all(r, kind).map_err(|e| match e {
-        InputError::Binary { offset, what } => InputError::Binary {
-            offset: offset + head.len() as u64,
-            what,
-        },
-        e => e,
-    });
-    let tail = tail.map_err(|e| input_error(path, e))?;
-    head.extend_from_slice(&tail);
-    Ok(head)
+    input::read_rest(r, kind, head).map_err(|e| input_error(path, e))
 }
 
 fn read_text(

@@ -3,6 +3,7 @@
 //! materials entered in the scene's table.
 
 use glam::DVec3;
+use rayon::prelude::*;
 
 use super::model::{Bounds, Material, Triangle, Vertex};
 use crate::mesh::{Mesh, DEFAULT_MATERIAL, SMOOTH};
@@ -18,44 +19,30 @@ use crate::mesh::{Mesh, DEFAULT_MATERIAL, SMOOTH};
 pub fn triangles(
     mesh: &Mesh,
     material: Option<Material>,
-    place: impl Fn(DVec3) -> DVec3,
-    turn: impl Fn(DVec3) -> DVec3,
-    mut material_id: impl FnMut(Material) -> u32,
+    place: impl Fn(DVec3) -> DVec3 + Sync,
+    turn: impl Fn(DVec3) -> DVec3 + Sync,
+    material_id: impl FnMut(Material) -> u32,
 ) -> Vec<Triangle> {
     let smooth = if mesh.needs_smooth_normals() {
         mesh.smooth_normals()
     } else {
         Vec::new()
     };
+    let ids = Ids::of(mesh, material, material_id);
     mesh.faces
-        .iter()
-        .map(|f| {
-            let base = material
-                .or_else(|| f.material.map(|m| mesh.materials[m as usize]))
-                .unwrap_or(if mesh.colors.is_empty() {
-                    DEFAULT_MATERIAL
-                } else {
-                    // Vertex colours give the diffuse colour.
-                    Material {
-                        kd: DVec3::ZERO,
-                        ks: DVec3::ZERO,
-                        shininess: 1.0,
-                    }
-                });
+        .par_iter()
+        .enumerate()
+        .map(|(i, f)| {
             let vertices = [0, 1, 2].map(|k| {
                 let p = f.positions[k] as usize;
                 let n = match f.normals {
                     Some(ns) if ns[k] != SMOOTH => mesh.normals[ns[k] as usize],
                     _ => smooth[p],
                 };
-                let mut m = base;
-                if let Some(c) = mesh.colors.get(p) {
-                    m.kd = *c;
-                }
                 Vertex {
                     position: place(mesh.positions[p]),
                     normal: unit(turn(n)),
-                    material: material_id(m),
+                    material: ids.get(mesh, material, i, k),
                 }
             });
             Triangle {
@@ -64,6 +51,87 @@ pub fn triangles(
             }
         })
         .collect()
+}
+
+/// Each corner's index in the scene's material table, found before the
+/// triangles are made on every thread: the table takes materials in the
+/// order corners first use them, as a corner-by-corner pass would.
+enum Ids {
+    /// Without vertex colours: by the face's base material (`base`).
+    PerBase(Vec<u32>),
+    /// With them (each vertex's colour its diffuse one): per corner.
+    PerCorner(Vec<[u32; 3]>),
+}
+
+impl Ids {
+    fn of(mesh: &Mesh, material: Option<Material>, mut id: impl FnMut(Material) -> u32) -> Ids {
+        const UNSEEN: u32 = u32::MAX;
+        if mesh.colors.is_empty() {
+            let mut ids = vec![UNSEEN; mesh.materials.len() + 1];
+            for f in &mesh.faces {
+                let b = base(material, f.material);
+                if ids[b] == UNSEEN {
+                    ids[b] = id(base_material(mesh, material, f.material));
+                }
+            }
+            return Ids::PerBase(ids);
+        }
+        // A vertex's material is its face's base with its colour: the last
+        // (base, id) seen at each vertex saves finding it again.
+        let mut seen = vec![(UNSEEN, UNSEEN); mesh.positions.len()];
+        let ids = mesh
+            .faces
+            .iter()
+            .map(|f| {
+                let b = base(material, f.material) as u32;
+                f.positions.map(|p| {
+                    let (sb, sid) = seen[p as usize];
+                    if sb == b {
+                        return sid;
+                    }
+                    let mut m = base_material(mesh, material, f.material);
+                    m.kd = mesh.colors[p as usize];
+                    let new = id(m);
+                    seen[p as usize] = (b, new);
+                    new
+                })
+            })
+            .collect();
+        Ids::PerCorner(ids)
+    }
+
+    fn get(&self, mesh: &Mesh, material: Option<Material>, face: usize, corner: usize) -> u32 {
+        match self {
+            Ids::PerBase(ids) => ids[base(material, mesh.faces[face].material)],
+            Ids::PerCorner(ids) => ids[face][corner],
+        }
+    }
+}
+
+/// Which base material a face takes, as an index: 0 for the block's (or
+/// the default), 1 + the file's otherwise.
+fn base(material: Option<Material>, file: Option<u32>) -> usize {
+    match (material, file) {
+        (None, Some(m)) => m as usize + 1,
+        _ => 0,
+    }
+}
+
+/// A face's material before vertex colours: the block's, else the file's,
+/// else `DEFAULT_MATERIAL` (with vertex colours: black with no highlight,
+/// the colour being the diffuse one).
+fn base_material(mesh: &Mesh, material: Option<Material>, file: Option<u32>) -> Material {
+    material
+        .or_else(|| file.map(|m| mesh.materials[m as usize]))
+        .unwrap_or(if mesh.colors.is_empty() {
+            DEFAULT_MATERIAL
+        } else {
+            Material {
+                kd: DVec3::ZERO,
+                ks: DVec3::ZERO,
+                shininess: 1.0,
+            }
+        })
 }
 
 /// The bounds of the vertices faces use (a file's unused or

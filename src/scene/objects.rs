@@ -3,6 +3,7 @@
 //! steps), the settings lines and materials.
 
 use glam::DVec3;
+use rayon::prelude::*;
 
 use std::path::Path;
 
@@ -223,7 +224,7 @@ impl<'a> Parser<'a> {
         }
         let start = std::time::Instant::now();
         let file = self.base_dir().join(&name);
-        let mesh = crate::mesh::load(&file).map_err(|e| {
+        let (mesh, read_time) = crate::mesh::load_timed(&file).map_err(|e| {
             self.error_at(
                 &name_tok,
                 format!("cannot load this mesh: {e}"),
@@ -266,6 +267,7 @@ impl<'a> Parser<'a> {
             self.warn(diagnostic);
         }
         let state = &mut self.state;
+        let normals_start = std::time::Instant::now();
         let triangles = super::mesh::triangles(
             &mesh,
             material,
@@ -274,11 +276,17 @@ impl<'a> Parser<'a> {
             |m| state.material_ids.id(&mut state.scene.materials, m),
         );
         let bounds = triangles
-            .iter()
+            .par_iter()
             .map(Triangle::bounds)
-            .fold(Bounds::EMPTY, Bounds::union);
+            .reduce(|| Bounds::EMPTY, Bounds::union);
+        let normals_time = normals_start.elapsed();
         let before = self.state.scene.triangles.len();
-        self.state.scene.triangles.extend(triangles);
+        if before == 0 {
+            // A big mesh's triangles are not copied again.
+            self.state.scene.triangles = triangles;
+        } else {
+            self.state.scene.triangles.extend(triangles);
+        }
         let count = self.state.scene.triangles.len() - before;
         if self.state.nothing_from_meshes.is_none() && count == 0 {
             self.state.nothing_from_meshes = Some(self.diagnostic(
@@ -298,6 +306,8 @@ impl<'a> Parser<'a> {
             triangles: count,
             bounds,
             load_time: start.elapsed(),
+            read_time,
+            normals_time,
             report: mesh.report,
         });
         Ok(())
