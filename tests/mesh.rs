@@ -497,8 +497,8 @@ fn cameras_see_what_the_scene_moved_the_other_way_shows() {
     assert_eq!(glint_wide, classic);
 }
 
-/// `glint convert`: a model to a classic scene and back to OBJ keeps every
-/// triangle, bit for bit.
+/// `glint convert`: a model to a scene (with the camera that frames it)
+/// and back to OBJ keeps every triangle, bit for bit.
 #[test]
 fn convert_round_trips() {
     let dir = tempfile::tempdir().expect("temp dir");
@@ -534,7 +534,13 @@ fn convert_round_trips() {
     assert!(out.contains("8 triangles"), "{out}");
     let scene = read_scene(&d.join("ply.scene")).expect("converted scene parses");
     assert_eq!(corners(&scene), expected(&g, true, true));
-    assert_eq!(scene.lights.len(), 1, "a light at the camera");
+    assert_eq!(scene.lights.len(), 1, "a light beside the camera");
+    let camera = scene.camera.expect("the framing camera, as a block");
+    let centre = scene.bounds().centroid();
+    assert!(
+        (camera.look - centre).length() < 1e-9,
+        "{camera:?} looks at {centre}"
+    );
     // Model -> classic scene -> OBJ -> mesh block: every bit kept.
     run(&[
         "convert",

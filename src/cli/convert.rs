@@ -43,7 +43,12 @@ pub fn run(args: ConvertArgs) -> anyhow::Result<ExitCode> {
     }
     glint::images::framebuffer::check_writable(&args.out)?;
     let scene = if Format::of(&args.input).is_some() {
-        model_as_scene(&args)?
+        let material = glint::scene::Material {
+            kd: glam::DVec3::from(args.dif),
+            ks: glam::DVec3::from(args.spe),
+            shininess: args.shi,
+        };
+        glint::scene::model_scene(&args.input, material)?
     } else {
         super::read_scene(&args.input)?
     };
@@ -77,6 +82,23 @@ pub fn run(args: ConvertArgs) -> anyhow::Result<ExitCode> {
         }
         return Ok(ExitCode::SUCCESS);
     }
+    if Format::of(&args.input).is_some() {
+        // The model's own coordinates, bit for bit, and the framing view
+        // as a `camera` block: a starting point to edit.
+        write(&args.out, &glint::scene::to_classic_text(&scene))?;
+        println!(
+            "wrote {} ({} triangles as the file placed them, the camera that frames them and a \
+             light beside it)",
+            args.out.display(),
+            scene.triangles.len(),
+        );
+        eprintln!(
+            "note: the view is a `camera` block, which classic tools do not read; `glint convert \
+             {} OUT.scene` writes the scene in the classic camera's view",
+            args.out.display()
+        );
+        return Ok(ExitCode::SUCCESS);
+    }
     // The classic camera sees the scene as its camera block did.
     let mut classic = scene.in_view_space().into_owned();
     let fov = classic.fov();
@@ -100,59 +122,6 @@ pub fn run(args: ConvertArgs) -> anyhow::Result<ExitCode> {
         classic.lights.len()
     );
     Ok(ExitCode::SUCCESS)
-}
-
-/// A model file alone, as a scene: its triangles where the file puts them,
-/// its materials (else `--dif/--spe/--shi` where it has none), a dim
-/// ambient and one white light at the camera, so that it renders as it is.
-fn model_as_scene(args: &ConvertArgs) -> Result<glint::scene::Scene, glint::Error> {
-    use glam::DVec3;
-    let start = std::time::Instant::now();
-    let mut mesh = glint::mesh::load(&args.input)?;
-    if mesh.faces.is_empty() {
-        return Err(glint::mesh::MeshError {
-            path: args.input.clone(),
-            at: None,
-            message: match mesh.report.dropped_faces() {
-                Some(dropped) => format!("nothing to convert: it holds no triangles ({dropped})"),
-                None => {
-                    "nothing to convert: it holds no triangles (points, lines or nothing)".into()
-                }
-            },
-        }
-        .into());
-    }
-    let given = glint::scene::Material {
-        kd: DVec3::from(args.dif),
-        ks: DVec3::from(args.spe),
-        shininess: args.shi,
-    };
-    // The file's materials where it has them for every face; vertex
-    // colours, where it has them, are the diffuse colour either way.
-    let material = (mesh.materials.is_empty() || mesh.missing_material()).then_some(given);
-    let mut scene = glint::scene::Scene {
-        ambient: DVec3::splat(0.1),
-        lights: vec![glint::scene::Light::point(DVec3::ZERO, DVec3::ONE)],
-        ..Default::default()
-    };
-    let mut ids = glint::scene::MaterialIds::default();
-    scene.triangles = glint::scene::mesh::triangles(
-        &mesh,
-        material,
-        |p| p,
-        |n| n,
-        |m| ids.id(&mut scene.materials, m),
-    );
-    scene.meshes.push(glint::scene::MeshInfo {
-        file: args.input.display().to_string(),
-        triangles: scene.triangles.len(),
-        bounds: scene.bounds(),
-        load_time: start.elapsed(),
-        read_time: std::time::Duration::ZERO,
-        normals_time: std::time::Duration::ZERO,
-        report: std::mem::take(&mut mesh.report),
-    });
-    Ok(scene)
 }
 
 /// R,G,B in f64, so that `--dif 0.3,...` is the scene file's 0.3.

@@ -4,9 +4,9 @@
 use clap::{Args, ValueEnum};
 use glint::gpu::DeviceSelector;
 use glint::render::RenderOptions;
-use glint::scene::{Effects, Sampler, Settings};
+use glint::scene::{CameraSpec, Effects, Sampler, Scene, Settings};
 
-use super::values::parse_rgb;
+use super::values::{parse_rgb, parse_xyz};
 
 /// The image: its size and what rays that hit nothing show.
 #[derive(Args, Clone, Copy, Debug)]
@@ -18,6 +18,54 @@ pub struct ImageArgs {
     /// Colour of rays that hit nothing, as R,G,B in [0, 1].
     #[arg(long, default_value = "1,1,1", value_parser = parse_rgb)]
     pub background: [f32; 3],
+}
+
+/// The view, set over the scene's own camera (or the classic one, or a
+/// model's framing): each flag given replaces that part of it.
+#[derive(Args, Clone, Copy, Debug)]
+pub struct CameraArgs {
+    /// Where the camera is, as X,Y,Z in the scene's units.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_xyz)]
+    pub eye: Option<[f64; 3]>,
+    /// A point the camera looks at, as X,Y,Z.
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_xyz)]
+    pub look: Option<[f64; 3]>,
+    /// Which way is up, as X,Y,Z (need not be perpendicular to the view).
+    #[arg(long, value_name = "X,Y,Z", value_parser = parse_xyz)]
+    pub up: Option<[f64; 3]>,
+    /// Vertical field of view, degrees (above 0, below 180).
+    #[arg(long, value_name = "DEGREES")]
+    pub fov: Option<f64>,
+}
+
+impl CameraArgs {
+    /// The scene's camera with the flags given put in; an error where the
+    /// result cannot see (eye at look, up along the view, a bad angle).
+    pub fn apply(&self, scene: &mut Scene) -> Result<(), glint::Error> {
+        if self.eye.is_none() && self.look.is_none() && self.up.is_none() && self.fov.is_none() {
+            return Ok(());
+        }
+        let mut camera = scene.camera.unwrap_or(CameraSpec::CLASSIC);
+        camera.eye = self.eye.map_or(camera.eye, glam::DVec3::from);
+        camera.look = self.look.map_or(camera.look, glam::DVec3::from);
+        camera.up = self.up.map_or(camera.up, glam::DVec3::from);
+        camera.fov = self.fov.unwrap_or(camera.fov);
+        if !(camera.fov > 0.0 && camera.fov < 180.0) {
+            return Err(glint::Error::InvalidOption(format!(
+                "--fov must be above 0 and below 180 degrees, found {}",
+                camera.fov
+            )));
+        }
+        if camera.basis().is_none() {
+            return Err(glint::Error::InvalidOption(format!(
+                "the camera cannot see: eye {} looks at {} with up {}; move --look off the \
+                 eye, or give an --up that is not along the view",
+                camera.eye, camera.look, camera.up
+            )));
+        }
+        scene.camera = Some(camera);
+        Ok(())
+    }
 }
 
 /// Where the render runs.

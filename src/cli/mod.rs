@@ -19,7 +19,7 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
-pub use flags::{DeviceArgs, EffectArgs, ImageArgs, MethodsArg};
+pub use flags::{CameraArgs, DeviceArgs, EffectArgs, ImageArgs, MethodsArg};
 
 #[derive(Parser, Debug)]
 #[command(
@@ -166,6 +166,9 @@ pub fn read_scene(path: &std::path::Path) -> Result<glint::scene::Scene, glint::
             std::io::stdin().lock(),
             std::path::Path::new("<stdin>"),
         );
+    }
+    if glint::mesh::Format::of(path).is_some() {
+        return glint::scene::read_scene(path);
     }
     let file = std::fs::File::open(path).map_err(|error| glint::Error::ReadScene {
         path: path.to_path_buf(),

@@ -93,7 +93,8 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         crop.check(args.image.width, args.image.height)?;
     }
     let parse_start = Instant::now();
-    let scene = read_scene(&args.scene)?;
+    let mut scene = read_scene(&args.scene)?;
+    args.camera.apply(&mut scene)?;
     let parse_time = parse_start.elapsed();
     print_warnings(&scene);
     let options = args.options();

@@ -44,6 +44,17 @@ pub fn parse_seconds(s: &str) -> Result<f64, String> {
     }
 }
 
+/// X,Y,Z: a point or direction, any finite numbers.
+pub fn parse_xyz(s: &str) -> Result<[f64; 3], String> {
+    let values: Result<Vec<f64>, _> = s.split(',').map(|p| p.trim().parse::<f64>()).collect();
+    match values {
+        Ok(v) if v.len() == 3 && v.iter().all(|c| c.is_finite()) => Ok([v[0], v[1], v[2]]),
+        _ => Err(format!(
+            "expected X,Y,Z as three finite numbers (e.g. 0,1,5), found `{s}`"
+        )),
+    }
+}
+
 pub fn parse_rgb(s: &str) -> Result<[f32; 3], String> {
     let parts: Vec<&str> = s.split(',').map(str::trim).collect();
     let values: Result<Vec<f32>, _> = parts.iter().map(|p| p.parse::<f32>()).collect();

@@ -9,11 +9,12 @@ use glint::render::passes::StopAt;
 use glint::render::RenderOptions;
 
 use super::values::{parse_error_target, parse_seconds};
-use super::{DeviceArgs, EffectArgs, ImageArgs};
+use super::{CameraArgs, DeviceArgs, EffectArgs, ImageArgs};
 
 #[derive(clap::Args, Debug)]
 pub struct ViewArgs {
-    /// Scene file in the classic format; `-` reads it from standard input.
+    /// Scene file in the classic format, or a model file (.obj, .ply, .off, .stl, .gltf,
+    /// .glb) seen alone, framed; `-` reads a scene from standard input.
     scene: PathBuf,
     /// Also write the image here when the refinement stops (and when the
     /// window closes): .png, .jpg, .ppm or .exr.
@@ -22,6 +23,8 @@ pub struct ViewArgs {
     image: ImageArgs,
     #[command(flatten)]
     device: DeviceArgs,
+    #[command(flatten)]
+    camera: CameraArgs,
     /// Stop refining once the estimated RMSE (linear, 0-1) is at most E.
     #[arg(long, value_name = "E", value_parser = parse_error_target)]
     target_error: Option<f64>,
@@ -45,7 +48,8 @@ pub struct ViewArgs {
 }
 
 pub fn run(args: ViewArgs) -> anyhow::Result<ExitCode> {
-    let scene = super::read_scene(&args.scene)?;
+    let mut scene = super::read_scene(&args.scene)?;
+    args.camera.apply(&mut scene)?;
     super::print_warnings(&scene);
     if let Some(out) = &args.out {
         glint::images::framebuffer::check_output(out)?;

@@ -17,6 +17,7 @@ mod obj;
 mod off;
 mod ply;
 mod ply_fast;
+mod ply_layout;
 mod polygon;
 pub mod report;
 mod source;

@@ -14,7 +14,7 @@ use std::sync::atomic::{AtomicBool, Ordering};
 use glam::DVec3;
 use rayon::prelude::*;
 
-use super::ply::{Element, Roles, Scalar};
+use super::ply_layout::{Element, Roles, Scalar};
 use super::{Face, Mesh};
 
 /// Where a fixed-size property sits in its element's records.

@@ -1,9 +1,10 @@
 //! Scenes: the model (`model`), the classic format's parser (`parse`, its
 //! objects in `objects`, reading in windows in `windows`, messages in
 //! `diagnostic`), render settings (`settings`), a model file's mesh as
-//! triangles (`mesh`) and writing a scene back (`write`, and as OBJ in `obj`).
+//! triangles (`mesh`), a model file alone framed as a scene (`framed`) and writing a scene back (`write`, and as OBJ in `obj`).
 
 mod diagnostic;
+mod framed;
 pub mod mesh;
 pub(crate) mod model;
 mod obj;
@@ -15,6 +16,7 @@ mod windows;
 mod write;
 
 pub use diagnostic::{Diagnostic, ParseError};
+pub use framed::{framing, model_scene, MODEL_AMBIENT, MODEL_MATERIAL};
 pub use model::*;
 pub use obj::{write_obj, ObjWritten};
 pub use settings::{Effects, Sampler, Settings};

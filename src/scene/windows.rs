@@ -11,8 +11,16 @@ use super::model::Scene;
 use super::parse::{Parser, State, LOOKAHEAD, SIMPLE_OBJECTS};
 use crate::Error;
 
-/// Reads and parses a scene file; `path` is also used in messages.
+/// Reads and parses a scene file; `path` is also used in messages. A model
+/// file (by its extension: `mesh::EXTENSIONS`) is read as a scene of that
+/// model alone, framed (`model_scene` with `MODEL_MATERIAL`).
 pub fn read_scene(path: &Path) -> Result<Scene, Error> {
+    if crate::mesh::Format::of(path).is_some() {
+        return Ok(super::framed::model_scene(
+            path,
+            super::framed::MODEL_MATERIAL,
+        )?);
+    }
     let file = std::fs::File::open(path).map_err(|error| Error::ReadScene {
         path: path.to_path_buf(),
         error,

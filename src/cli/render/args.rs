@@ -11,11 +11,12 @@ use glint::parts::crop::Crop;
 use glint::render::RenderOptions;
 
 use crate::cli::values::{parse_error_target, parse_pixel, parse_range, parse_seconds};
-use crate::cli::{DeviceArgs, EffectArgs, ImageArgs, MethodsArg};
+use crate::cli::{CameraArgs, DeviceArgs, EffectArgs, ImageArgs, MethodsArg};
 
 #[derive(Args, Debug)]
 pub struct RenderArgs {
-    /// Scene file in the classic format; `-` reads it from standard input.
+    /// Scene file in the classic format, or a model file (.obj, .ply, .off, .stl, .gltf,
+    /// .glb) seen alone, framed; `-` reads a scene from standard input.
     pub scene: PathBuf,
     /// Output image (.jpg, .jpeg, .png, .ppm, or .exr for float values);
     /// `-` writes PNG to standard output; default: <scene stem>.jpg here.
@@ -27,6 +28,8 @@ pub struct RenderArgs {
     pub image: ImageArgs,
     #[command(flatten)]
     pub device: DeviceArgs,
+    #[command(flatten)]
+    pub camera: CameraArgs,
     /// JPEG quality (1-100).
     #[arg(long, default_value_t = DEFAULT_JPEG_QUALITY, value_parser = clap::value_parser!(u8).range(1..=100))]
     pub quality: u8,

@@ -64,7 +64,8 @@ pub(super) fn run(
         }
         return Ok(ExitCode::SUCCESS);
     };
-    let scene = read_scene(&args.scene)?;
+    let mut scene = read_scene(&args.scene)?;
+    args.camera.apply(&mut scene)?;
     print_warnings(&scene);
     let options = args.options();
     let renderer = Renderer::new(&options)?;

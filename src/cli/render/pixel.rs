@@ -18,7 +18,8 @@ pub(super) fn run(args: &RenderArgs, pixel: [u32; 2]) -> anyhow::Result<ExitCode
         ))
         .into());
     }
-    let scene = read_scene(&args.scene)?;
+    let mut scene = read_scene(&args.scene)?;
+    args.camera.apply(&mut scene)?;
     print_warnings(&scene);
     let options = args.options();
     let start = Instant::now();
