@@ -6,6 +6,7 @@
 use std::path::Path;
 
 use glam::DVec3;
+use rayon::prelude::*;
 
 use super::polygon::{triangulate, Cut};
 use super::report::Tolerance;
@@ -63,6 +64,32 @@ impl<'a> Builder<'a> {
         }
     }
 
+    /// A builder holding polygons read elsewhere (`obj_fast`): corners as
+    /// (position, optional normal) indices, polygons as (first corner,
+    /// count, line).
+    pub fn from_polygons(
+        path: &'a Path,
+        mesh: Mesh,
+        corners: Vec<(u32, Option<u32>)>,
+        polygons: &[(u32, u32, u64)],
+    ) -> Builder<'a> {
+        Builder {
+            mesh,
+            path,
+            labels: Vec::new(),
+            corners,
+            polys: polygons
+                .par_iter()
+                .map(|&(start, len, line)| Poly {
+                    start,
+                    len,
+                    material: None,
+                    at: Loc::Line(line),
+                })
+                .collect(),
+        }
+    }
+
     pub fn warn(&mut self, kind: Tolerance, at: Option<String>, message: impl Into<String>) {
         self.mesh.report.warn(kind, self.path, at, message);
     }
@@ -109,7 +136,11 @@ impl<'a> Builder<'a> {
     }
 
     /// Checks and cuts every polygon into the mesh's faces.
-    pub fn finish(mut self) -> Result<Mesh, MeshError> {
+    pub fn finish(self) -> Result<Mesh, MeshError> {
+        self.finish_with(true)
+    }
+
+    fn finish_with(mut self, at_once: bool) -> Result<Mesh, MeshError> {
         if self.corners.len() >= u32::MAX as usize {
             return Err(MeshError {
                 path: self.path.to_path_buf(),
@@ -122,12 +153,22 @@ impl<'a> Builder<'a> {
             normal: self
                 .mesh
                 .normals
-                .iter()
+                .par_iter()
                 .map(|n| !n.is_finite() || n.length_squared() == 0.0)
                 .collect(),
-            position: self.mesh.positions.iter().map(|p| !p.is_finite()).collect(),
+            position: self
+                .mesh
+                .positions
+                .par_iter()
+                .map(|p| !p.is_finite())
+                .collect(),
         };
         let mut used_normals = false;
+        if let Some(faces) = at_once.then(|| self.simple_triangles(&bad)).flatten() {
+            used_normals = faces.par_iter().any(|f| f.normals.is_some());
+            self.mesh.faces = faces;
+            self.polys.clear();
+        }
         let mut scratch = Scratch::default();
         let polys = std::mem::take(&mut self.polys);
         self.mesh.faces.reserve(polys.len());
@@ -145,6 +186,70 @@ impl<'a> Builder<'a> {
             );
         }
         Ok(self.mesh)
+    }
+
+    /// Every polygon as its face, on every thread, when every one is a
+    /// triangle that `add_polygon` would keep as it is: three distinct
+    /// corners in range at finite positions spanning some area, normals on
+    /// all corners or none, each usable. None otherwise (`add_polygon`
+    /// then takes them one by one, with its warnings and errors).
+    fn simple_triangles(&self, bad: &Unusable) -> Option<Vec<Face>> {
+        let np = self.mesh.positions.len();
+        let nn = self.mesh.normals.len();
+        let nm = self.mesh.materials.len() as u32;
+        let simple = |poly: &Poly| -> Option<Face> {
+            if poly.len != 3 || poly.material.is_some_and(|m| m >= nm) {
+                return None;
+            }
+            let c = &self.corners[poly.start as usize..poly.start as usize + 3];
+            let positions = [c[0].0, c[1].0, c[2].0];
+            let [a, b, d] = positions;
+            if a == b || b == d || d == a || positions.iter().any(|&p| p as usize >= np) {
+                return None;
+            }
+            if positions.iter().any(|&p| bad.position[p as usize]) {
+                return None;
+            }
+            let [pa, pb, pd] = positions.map(|p| self.mesh.positions[p as usize]);
+            if (pb - pa).cross(pd - pa).length_squared() == 0.0 {
+                return None;
+            }
+            let normals = match (c[0].1, c[1].1, c[2].1) {
+                (None, None, None) => None,
+                (Some(x), Some(y), Some(z)) => {
+                    let n = [x, y, z];
+                    if n.iter()
+                        .any(|&k| k as usize >= nn || bad.normal[k as usize])
+                    {
+                        return None;
+                    }
+                    Some(n)
+                }
+                _ => return None,
+            };
+            Some(Face {
+                positions,
+                normals,
+                material: poly.material,
+            })
+        };
+        // Straight into place; one polygon that needs care refuses all.
+        let refused = std::sync::atomic::AtomicBool::new(false);
+        let faces: Vec<Face> = self
+            .polys
+            .par_iter()
+            .map(|poly| {
+                simple(poly).unwrap_or_else(|| {
+                    refused.store(true, std::sync::atomic::Ordering::Relaxed);
+                    Face {
+                        positions: [0; 3],
+                        normals: None,
+                        material: None,
+                    }
+                })
+            })
+            .collect();
+        (!refused.into_inner()).then_some(faces)
     }
 
     /// One polygon's triangles into the mesh, or a warning saying why it
@@ -306,5 +411,55 @@ impl<'a> Builder<'a> {
                 ),
             );
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// A builder of a 30x30 grid's triangles, with normals on every
+    /// corner or none, and `extra` polygons after them.
+    fn grid(normals: bool, extra: &[&[u32]]) -> Builder<'static> {
+        let mut b = Builder::new(Path::new("t"));
+        for j in 0..30 {
+            for i in 0..30 {
+                let (x, y) = (f64::from(i), f64::from(j));
+                b.mesh.positions.push(DVec3::new(x, y, (x * y).sin()));
+                b.mesh.normals.push(DVec3::new(0.0, (x * 0.1).sin(), 1.0));
+            }
+        }
+        for j in 0..29 {
+            for i in 0..29 {
+                let v = j * 30 + i;
+                for t in [[v, v + 1, v + 31], [v, v + 31, v + 30]] {
+                    let n = |k: u32| normals.then_some(k);
+                    b.polygon(t.map(|k| (k, n(k))), None, Loc::Line(u64::from(v)));
+                }
+            }
+        }
+        for e in extra {
+            b.polygon(e.iter().map(|&k| (k, None)), None, Loc::Line(9999));
+        }
+        b
+    }
+
+    #[test]
+    fn triangles_at_once_are_the_faces_one_by_one_gives() {
+        let cases: [(bool, &[&[u32]]); 5] = [
+            (true, &[]),
+            (false, &[]),
+            (false, &[&[0, 1, 2, 3]]),
+            (true, &[&[0, 1, 1]]),
+            (false, &[&[0, 1, 2000]]),
+        ];
+        for (normals, extra) in cases {
+            let one_by_one = grid(normals, extra).finish_with(false);
+            let at_once = grid(normals, extra).finish_with(true);
+            assert_eq!(at_once, one_by_one, "normals {normals}, extra {extra:?}");
+        }
+        // Unused normals are still said.
+        let mesh = grid(false, &[]).finish().unwrap();
+        assert!(!mesh.report.is_empty());
     }
 }

@@ -14,6 +14,7 @@ mod build;
 mod gltf;
 mod mtl;
 mod obj;
+mod obj_fast;
 mod off;
 mod ply;
 mod ply_fast;

@@ -20,6 +20,24 @@ use super::text::{show, Text};
 use super::{Mesh, MeshError, Refs};
 
 pub fn parse(src: &[u8], path: &Path, refs: Refs) -> Result<Mesh, MeshError> {
+    let t0 = std::time::Instant::now();
+    let fast = super::obj_fast::read(src);
+    eprintln!("fast {:?} {}", t0.elapsed(), fast.is_some());
+    if let Some(p) = fast {
+        let mesh = Mesh {
+            positions: p.positions,
+            normals: p.normals,
+            ..Mesh::default()
+        };
+        let r = Builder::from_polygons(path, mesh, p.corners, &p.polygons).finish();
+        eprintln!("finish {:?}", t0.elapsed());
+        return r;
+    }
+    parse_general(src, path, refs)
+}
+
+/// `parse` by the general reader alone: every line in turn.
+pub(super) fn parse_general(src: &[u8], path: &Path, refs: Refs) -> Result<Mesh, MeshError> {
     let mut t = Text::new(src, path);
     let mut b = Builder::new(path);
     let mut names: HashMap<String, u32> = HashMap::new();
