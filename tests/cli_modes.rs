@@ -754,3 +754,51 @@ fn bench_embree_reports_a_failing_or_silent_harness() {
         stderr(&o)
     );
 }
+
+/// `glint bench load`: a row per input, a model alone and a scene naming
+/// it counting the same triangles and the model's bytes.
+#[test]
+fn bench_load_reports_each_inputs_phases() {
+    let d = tmp();
+    let mut obj = String::new();
+    for k in 0..8 {
+        let s = |bit: usize| if k >> bit & 1 == 1 { 1 } else { -1 };
+        obj += &format!("v {} {} {}\n", s(0), s(1), s(2) - 5);
+    }
+    obj += "f 1 3 4 2\nf 5 6 8 7\nf 1 2 6 5\nf 3 7 8 4\nf 1 5 7 3\nf 2 4 8 6\n";
+    std::fs::write(d.path().join("box.obj"), &obj).unwrap();
+    std::fs::write(
+        d.path().join("box.scene"),
+        "2\namb: 0 0 0\nmesh file: box.obj\nlight pos: 0 0 0 col: 1 1 1\n",
+    )
+    .unwrap();
+    let o = glint(
+        &["bench", "load", "--rounds", "2", "box.obj", "box.scene"],
+        d.path(),
+    );
+    assert!(o.status.success(), "{}", stderr(&o));
+    let out = stdout(&o);
+    let rows: Vec<&str> = out.lines().filter(|l| l.starts_with("| box.")).collect();
+    assert_eq!(rows.len(), 2, "{out}");
+    for row in &rows {
+        let cells: Vec<&str> = row.split('|').map(str::trim).collect();
+        assert_eq!(cells[3], "12", "triangles: {row}");
+        assert!(
+            cells[11].parse::<f64>().is_ok_and(|r| r >= 0.0),
+            "MB/s: {row}"
+        );
+    }
+    let bytes = |row: &str| {
+        row.split('|')
+            .nth(2)
+            .unwrap()
+            .trim()
+            .parse::<u64>()
+            .unwrap()
+    };
+    assert_eq!(bytes(rows[0]), obj.len() as u64, "{out}");
+    assert!(
+        bytes(rows[1]) > bytes(rows[0]),
+        "the scene counts its file and the model's"
+    );
+}

@@ -51,6 +51,20 @@ enum BenchCommand {
     /// Embree's upload + commit beside them, with `--embree`), as a
     /// markdown table.
     Build(BuildArgs),
+    /// How fast each scene or model arrives: reading, parsing, normals,
+    /// the view, the BVH and the CPU's packing, and the load's MB/s, as a
+    /// markdown table.
+    Load(LoadArgs),
+}
+
+#[derive(Args, Debug)]
+pub struct LoadArgs {
+    /// Scene or model files (e.g. ../shared/tools/gen_mesh.py's).
+    #[arg(required = true)]
+    inputs: Vec<PathBuf>,
+    /// Rounds per input; each cell is their median.
+    #[arg(long, default_value_t = 5, value_parser = clap::value_parser!(u32).range(1..=1000))]
+    rounds: u32,
 }
 
 #[derive(Args, Debug)]
@@ -246,6 +260,15 @@ pub fn run(args: BenchArgs) -> anyhow::Result<ExitCode> {
         Some(BenchCommand::Embree(args)) => run_embree(args),
         Some(BenchCommand::Samplers(args)) => run_samplers(args),
         Some(BenchCommand::Build(args)) => run_build(args),
+        Some(BenchCommand::Load(args)) => {
+            let options = glint::suites::bench::LoadOptions {
+                inputs: args.inputs,
+                rounds: args.rounds as usize,
+            };
+            let report = glint::suites::bench::run_load(&options, &mut |l| eprintln!("{l}"))?;
+            println!("{}", report.to_markdown());
+            Ok(ExitCode::SUCCESS)
+        }
         None => run_scenes(args.scenes),
     }
 }

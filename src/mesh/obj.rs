@@ -20,18 +20,13 @@ use super::text::{show, Text};
 use super::{Mesh, MeshError, Refs};
 
 pub fn parse(src: &[u8], path: &Path, refs: Refs) -> Result<Mesh, MeshError> {
-    let t0 = std::time::Instant::now();
-    let fast = super::obj_fast::read(src);
-    eprintln!("fast {:?} {}", t0.elapsed(), fast.is_some());
-    if let Some(p) = fast {
+    if let Some(p) = super::obj_fast::read(src) {
         let mesh = Mesh {
             positions: p.positions,
             normals: p.normals,
             ..Mesh::default()
         };
-        let r = Builder::from_polygons(path, mesh, p.corners, &p.polygons).finish();
-        eprintln!("finish {:?}", t0.elapsed());
-        return r;
+        return Builder::from_polygons(path, mesh, p.corners, &p.polygons).finish();
     }
     parse_general(src, path, refs)
 }

@@ -13,6 +13,7 @@ mod build;
 mod common;
 mod embree;
 mod hard;
+mod load;
 mod process;
 mod samplers;
 mod scenes;
@@ -25,6 +26,7 @@ pub use embree::{
     Mode,
 };
 pub use hard::{run_hard, HardOptions, HardReport};
+pub use load::{run_load, LoadOptions, LoadReport, LoadRow};
 pub use samplers::{run_samplers, sampler_scenes, SamplerRow, SamplersOptions, SamplersReport};
 pub use scenes::{run, BenchOptions, BenchReport, SceneResult};
 pub use specialize::{run_specialize, specialize_scenes, SpecializeOptions};
