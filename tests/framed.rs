@@ -149,3 +149,49 @@ fn a_model_without_triangles_is_an_error_naming_it() {
     assert!(stderr(&o).contains("points.obj"), "{}", stderr(&o));
     assert!(stderr(&o).contains("no triangles"), "{}", stderr(&o));
 }
+
+/// A glTF file's own perspective camera is the view it renders with,
+/// placed by its node's transform (glTF cameras look down their -z).
+#[test]
+fn a_gltf_camera_is_the_view() {
+    let d = tmp();
+    let mut bin = Vec::new();
+    for v in [[0.0f32, 0.0, 0.0], [1.0, 0.0, 0.0], [0.0, 1.0, 0.0]] {
+        for c in v {
+            bin.extend(c.to_le_bytes());
+        }
+    }
+    std::fs::write(d.path().join("tri.bin"), &bin).unwrap();
+    let json = r#"{"asset":{"version":"2.0"},"scene":0,"scenes":[{"nodes":[0,1]}],
+        "nodes":[{"mesh":0},{"camera":0,"translation":[0.5,0.5,4],"rotation":[0,0.0871557,0,0.9961947]}],
+        "cameras":[{"type":"perspective","perspective":{"yfov":0.5,"znear":0.1}}],
+        "meshes":[{"primitives":[{"attributes":{"POSITION":0}}]}],
+        "accessors":[{"bufferView":0,"componentType":5126,"count":3,"type":"VEC3",
+                      "min":[0,0,0],"max":[1,1,0]}],
+        "bufferViews":[{"buffer":0,"byteLength":36}],
+        "buffers":[{"byteLength":36,"uri":"tri.bin"}]}"#;
+    std::fs::write(d.path().join("cam.gltf"), json).unwrap();
+    let scene = glint::scene::read_scene(&d.path().join("cam.gltf")).expect("loads");
+    let camera = scene.camera.expect("a camera");
+    assert!(
+        (camera.eye - glam::DVec3::new(0.5, 0.5, 4.0)).length() < 1e-6,
+        "{camera:?}"
+    );
+    assert!(
+        (camera.fov - 0.5f64.to_degrees()).abs() < 1e-4,
+        "{camera:?}"
+    );
+    // Turned 10 degrees about +y: it looks down -z, a little toward -x.
+    let view = (camera.look - camera.eye).normalize();
+    let want = glam::DVec3::new(
+        -(10f64.to_radians().sin()),
+        0.0,
+        -(10f64.to_radians().cos()),
+    );
+    assert!((view - want).length() < 1e-5, "{view} vs {want}");
+    // Without the camera node the framing's view.
+    let framed = json.replace(r#""nodes":[0,1]"#, r#""nodes":[0]"#);
+    std::fs::write(d.path().join("plain.gltf"), framed).unwrap();
+    let scene = glint::scene::read_scene(&d.path().join("plain.gltf")).expect("loads");
+    assert_eq!(scene.camera.map(|c| c.fov), Some(60.0));
+}

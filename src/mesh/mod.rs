@@ -74,6 +74,22 @@ pub struct Mesh {
     pub materials: Vec<Material>,
     /// What was tolerated in reading it.
     pub report: Report,
+    /// The file's own view, where it has one (glTF's first perspective
+    /// camera in the scene's nodes).
+    pub camera: Option<FileCamera>,
+}
+
+/// A view a model file gives: where from, which way, and how wide.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct FileCamera {
+    /// Where the camera is.
+    pub eye: DVec3,
+    /// A point it looks at (one unit along its view).
+    pub look: DVec3,
+    /// Its up direction.
+    pub up: DVec3,
+    /// Vertical field of view, degrees.
+    pub fov: f64,
 }
 
 /// What is wrong in a model file, and where.

@@ -30,7 +30,9 @@ pub const MODEL_AMBIENT: DVec3 = DVec3::splat(0.1);
 const VIEW_FROM: DVec3 = DVec3::new(0.35, 0.45, 1.0);
 
 /// The model in `path` (any format `mesh::load` reads) as a scene, its
-/// faces without a material taking `material`, framed by `framing`.
+/// faces without a material taking `material`, framed by `framing` (seen
+/// through the file's own camera where it has one, as glTF can; the light
+/// stays where the framing puts it).
 pub fn model_scene(path: &Path, material: Material) -> Result<Scene, MeshError> {
     let start = Instant::now();
     let (mut mesh, read_time) = mesh::load_timed(path)?;
@@ -64,7 +66,15 @@ pub fn model_scene(path: &Path, material: Material) -> Result<Scene, MeshError> 
     );
     let bounds = scene.bounds();
     let normals_time = normals_start.elapsed();
-    let (camera, light) = framing(bounds);
+    let (mut camera, light) = framing(bounds);
+    if let Some(own) = mesh.camera {
+        camera = CameraSpec {
+            eye: own.eye,
+            look: own.look,
+            up: own.up,
+            fov: own.fov,
+        };
+    }
     scene.camera = Some(camera);
     scene.lights.push(light);
     scene.meshes.push(MeshInfo {
