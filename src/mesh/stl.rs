@@ -57,36 +57,86 @@ pub fn parse_binary(src: &[u8], path: &Path) -> Result<Mesh, MeshError> {
         return Err(error(src.len(), "too short for a binary STL header".into()));
     };
     let count = u32::from_le_bytes([count[0], count[1], count[2], count[3]]) as usize;
+    let whole = (src.len() - 84) / 50;
+    if whole < count {
+        return Err(error(
+            src.len(),
+            format!("the file ends inside triangle {} of {count}", whole + 1),
+        ));
+    }
+    if count.saturating_mul(3) >= u32::MAX as usize {
+        return Err(error(
+            84,
+            format!("{count} triangles: more than 4 billion corners"),
+        ));
+    }
+    let (positions, ids) = weld_binary(&src[84..84 + 50 * count]);
     let mut b = Builder::new(path);
-    // The count is the file's word: room only for what the bytes hold.
-    let triangles = count.min(src.len().saturating_sub(84) / 50);
-    let mut weld = Weld::new(triangles / 2 + 3);
-    for i in 0..count {
-        let at = 84 + 50 * i;
-        let Some(tri) = src.get(at..at + 50) else {
-            return Err(error(
-                src.len(),
-                format!("the file ends inside triangle {} of {count}", i + 1),
-            ));
-        };
-        let f = |k: usize| {
-            let o = 12 + 4 * k;
-            f64::from(f32::from_le_bytes([
-                tri[o],
-                tri[o + 1],
-                tri[o + 2],
-                tri[o + 3],
-            ]))
-        };
-        let mut corners = [0u32; 3];
-        for (v, c) in corners.iter_mut().enumerate() {
-            // A vertex that is not finite drops its face in `build`.
-            let p = DVec3::new(f(3 * v), f(3 * v + 1), f(3 * v + 2));
-            *c = weld.vertex(&mut b, p);
-        }
-        b.polygon(corners.map(|c| (c, None)), None, Loc::Byte(at as u64));
+    b.mesh.positions = positions;
+    for (i, t) in ids.chunks_exact(3).enumerate() {
+        b.polygon(
+            t.iter().map(|&c| (c, None)),
+            None,
+            Loc::Byte((84 + 50 * i) as u64),
+        );
     }
     b.finish()
+}
+
+/// A corner's position in binary STL's triangles (`records`, 50 bytes
+/// each): corner `c` is vertex `c % 3` of triangle `c / 3`.
+fn corner_at(records: &[u8], c: usize) -> DVec3 {
+    let o = 50 * (c / 3) + 12 + 12 * (c % 3);
+    let f = |k: usize| {
+        let b = &records[o + 4 * k..o + 4 * k + 4];
+        f64::from(f32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+    };
+    DVec3::new(f(0), f(1), f(2))
+}
+
+/// Every corner of binary STL's triangles welded as `Weld` does (a
+/// position's vertex is made at its first corner, in file order), on every
+/// thread: the positions are dealt to shards by a fixed hash, each shard
+/// finds the first corner of each of its positions, and one pass in file
+/// order numbers the vertices. Returns the vertices and each corner's.
+fn weld_binary(records: &[u8]) -> (Vec<DVec3>, Vec<u32>) {
+    use rayon::prelude::*;
+    use std::hash::BuildHasher;
+    use std::sync::atomic::{AtomicU32, Ordering};
+    let corners = records.len() / 50 * 3;
+    let key = |c: usize| corner_at(records, c).to_array().map(f64::to_bits);
+    // A table a shard, small enough to stay in cache far more than one
+    // table of every vertex would.
+    let shards = (rayon::current_num_threads() * 4).max(8) as u64;
+    let deal = foldhash::fast::FixedState::with_seed(0x5eed);
+    let first: Vec<AtomicU32> = (0..corners).map(|_| AtomicU32::new(0)).collect();
+    (0..shards).into_par_iter().for_each(|shard| {
+        let mut table: HashMap<[u64; 3], u32, foldhash::fast::RandomState> =
+            HashMap::with_capacity_and_hasher(
+                corners / 6 / shards as usize + 16,
+                foldhash::fast::RandomState::default(),
+            );
+        for c in 0..corners {
+            let k = key(c);
+            if deal.hash_one(k) % shards != shard {
+                continue;
+            }
+            let f = *table.entry(k).or_insert(c as u32);
+            first[c].store(f, Ordering::Relaxed);
+        }
+    });
+    let mut positions = Vec::with_capacity(corners / 6 + 3);
+    let mut ids = vec![0u32; corners];
+    for c in 0..corners {
+        let f = first[c].load(Ordering::Relaxed) as usize;
+        ids[c] = if f == c {
+            positions.push(corner_at(records, c));
+            (positions.len() - 1) as u32
+        } else {
+            ids[f]
+        };
+    }
+    (positions, ids)
 }
 
 /// ASCII STL: `solid`, then `facet normal ...`, `outer loop`, `vertex x y
@@ -131,4 +181,49 @@ pub fn parse_ascii(src: &[u8], path: &Path) -> Result<Mesh, MeshError> {
         }
     }
     b.finish()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The weld one corner at a time, as the ASCII reader does.
+    fn sequential(records: &[u8]) -> (Vec<DVec3>, Vec<u32>) {
+        let mut b = Builder::new(Path::new("t"));
+        let mut weld = Weld::new(0);
+        let ids = (0..records.len() / 50 * 3)
+            .map(|c| weld.vertex(&mut b, corner_at(records, c)))
+            .collect();
+        (b.mesh.positions, ids)
+    }
+
+    #[test]
+    fn the_binary_weld_numbers_vertices_as_one_table_would() {
+        // Corners drawn from a small set of positions (so most repeat),
+        // with 0 and -0 (different vertices) and NaNs among them.
+        let values = [0.0f32, -0.0, 1.0, 2.5, f32::NAN, -3.0, 1e-30];
+        let mut records = Vec::new();
+        let mut x = 12345u32;
+        for _ in 0..20_000 {
+            records.extend([0u8; 12]);
+            for _ in 0..9 {
+                x = x.wrapping_mul(1_664_525).wrapping_add(1_013_904_223);
+                records.extend(values[(x >> 24) as usize % values.len()].to_le_bytes());
+            }
+            records.extend([0u8; 2]);
+        }
+        let (want_positions, want_ids) = sequential(&records);
+        for threads in [1, 2, 5] {
+            let pool = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap();
+            let (positions, ids) = pool.install(|| weld_binary(&records));
+            assert_eq!(ids, want_ids, "{threads} threads");
+            let bits = |p: &[DVec3]| -> Vec<[u64; 3]> {
+                p.iter().map(|v| v.to_array().map(f64::to_bits)).collect()
+            };
+            assert_eq!(bits(&positions), bits(&want_positions), "{threads} threads");
+        }
+    }
 }
