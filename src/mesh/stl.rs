@@ -17,8 +17,7 @@ use super::{Mesh, MeshError};
 /// Joins vertices at the same position (bit for bit), so faces share
 /// corners and smooth normals span them.
 /// Hashed with foldhash, not SipHash: the keys are a file's own
-/// coordinates, and welding 6M corners with SipHash took most of a 2M
-/// triangle file's load (1.0 s of 1.3 s, 2 cores).
+/// coordinates (ASCII files; binary ones are welded by `weld_binary`).
 struct Weld {
     index: HashMap<[u64; 3], u32, foldhash::fast::RandomState>,
 }
@@ -99,15 +98,19 @@ fn corner_at(records: &[u8], c: usize) -> DVec3 {
 /// thread: the positions are dealt to shards by a fixed hash, each shard
 /// finds the first corner of each of its positions, and one pass in file
 /// order numbers the vertices. Returns the vertices and each corner's.
+/// The whole weld took 1.0 s of a 2M-triangle file's 1.3 s load through
+/// one SipHash table.
 fn weld_binary(records: &[u8]) -> (Vec<DVec3>, Vec<u32>) {
     use rayon::prelude::*;
     use std::hash::BuildHasher;
     use std::sync::atomic::{AtomicU32, Ordering};
     let corners = records.len() / 50 * 3;
     let key = |c: usize| corner_at(records, c).to_array().map(f64::to_bits);
-    // A table a shard, small enough to stay in cache far more than one
-    // table of every vertex would.
-    let shards = (rayon::current_num_threads() * 4).max(8) as u64;
+    // A shard a thread: every shard decodes and hashes every corner to
+    // find its own, so more shards cost more than their smaller tables
+    // save (8 shards on 2 threads: parse 555-630 ms for 2M triangles; 2:
+    // 490-530).
+    let shards = rayon::current_num_threads().max(1) as u64;
     let deal = foldhash::fast::FixedState::with_seed(0x5eed);
     let first: Vec<AtomicU32> = (0..corners).map(|_| AtomicU32::new(0)).collect();
     (0..shards).into_par_iter().for_each(|shard| {
