@@ -22,7 +22,7 @@ pub const MODEL_MATERIAL: Material = Material {
 };
 
 /// The ambient colour of a framed model: the course's scenes' usual one.
-pub const MODEL_AMBIENT: DVec3 = DVec3::splat(0.1);
+pub(crate) const MODEL_AMBIENT: DVec3 = DVec3::splat(0.1);
 
 /// Where the framing camera looks from, relative to the model's centre:
 /// in front (+z, as OBJ and glTF face), a little above and to the right,
@@ -92,7 +92,7 @@ pub fn model_scene(path: &Path, material: Material) -> Result<Scene, MeshError> 
 /// A camera that sees all of `bounds` (its bounding sphere inside the
 /// classic 60° vertical field of view, with a margin), looking at its
 /// centre with +y up, and a white light above and beside the camera.
-pub fn framing(bounds: Bounds) -> (CameraSpec, Light) {
+pub(crate) fn framing(bounds: Bounds) -> (CameraSpec, Light) {
     let centre = bounds.centroid();
     let radius = (bounds.max - bounds.min).length() / 2.0;
     // A point, or bounds no f64 can measure, still gets a usable view.

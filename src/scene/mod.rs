@@ -16,7 +16,7 @@ mod windows;
 mod write;
 
 pub use diagnostic::{Diagnostic, ParseError};
-pub use framed::{framing, model_scene, MODEL_AMBIENT, MODEL_MATERIAL};
+pub use framed::{model_scene, MODEL_MATERIAL};
 pub use model::*;
 pub use obj::{write_obj, ObjWritten};
 pub use settings::{Effects, Sampler, Settings};
