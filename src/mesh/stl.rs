@@ -119,19 +119,18 @@ fn weld_binary(records: &[u8]) -> (Vec<DVec3>, Vec<u32>) {
                 corners / 6 / shards as usize + 16,
                 foldhash::fast::RandomState::default(),
             );
-        for c in 0..corners {
+        for (c, slot) in first.iter().enumerate() {
             let k = key(c);
             if deal.hash_one(k) % shards != shard {
                 continue;
             }
-            let f = *table.entry(k).or_insert(c as u32);
-            first[c].store(f, Ordering::Relaxed);
+            slot.store(*table.entry(k).or_insert(c as u32), Ordering::Relaxed);
         }
     });
     let mut positions = Vec::with_capacity(corners / 6 + 3);
     let mut ids = vec![0u32; corners];
-    for c in 0..corners {
-        let f = first[c].load(Ordering::Relaxed) as usize;
+    for (c, slot) in first.iter().enumerate() {
+        let f = slot.load(Ordering::Relaxed) as usize;
         ids[c] = if f == c {
             positions.push(corner_at(records, c));
             (positions.len() - 1) as u32
