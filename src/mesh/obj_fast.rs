@@ -198,12 +198,7 @@ impl<'a> Cursor<'a> {
             None | Some(b'\n' | b'#') => None,
             Some(_) => {
                 let start = self.pos;
-                while let Some(&c) = self.src.get(self.pos) {
-                    if c.is_ascii_whitespace() || c == b'#' {
-                        break;
-                    }
-                    self.pos += 1;
-                }
+                self.pos = super::text::word_end(self.src, start);
                 Some(&self.src[start..self.pos])
             }
         }

@@ -263,45 +263,25 @@ mod tests {
     }
 
     impl Body {
-        fn f32(&mut self, v: f32) -> &mut Self {
-            let b = if self.big {
-                v.to_be_bytes()
-            } else {
-                v.to_le_bytes()
-            };
-            self.bytes.extend_from_slice(&b);
+        fn put<const N: usize>(&mut self, le: [u8; N], be: [u8; N]) -> &mut Self {
+            self.bytes
+                .extend_from_slice(if self.big { &be } else { &le });
             self
+        }
+        fn f32(&mut self, v: f32) -> &mut Self {
+            self.put(v.to_le_bytes(), v.to_be_bytes())
         }
         fn f64(&mut self, v: f64) -> &mut Self {
-            let b = if self.big {
-                v.to_be_bytes()
-            } else {
-                v.to_le_bytes()
-            };
-            self.bytes.extend_from_slice(&b);
-            self
+            self.put(v.to_le_bytes(), v.to_be_bytes())
         }
         fn u8(&mut self, v: u8) -> &mut Self {
-            self.bytes.push(v);
-            self
+            self.put([v], [v])
         }
         fn u16(&mut self, v: u16) -> &mut Self {
-            let b = if self.big {
-                v.to_be_bytes()
-            } else {
-                v.to_le_bytes()
-            };
-            self.bytes.extend_from_slice(&b);
-            self
+            self.put(v.to_le_bytes(), v.to_be_bytes())
         }
         fn i32(&mut self, v: i32) -> &mut Self {
-            let b = if self.big {
-                v.to_be_bytes()
-            } else {
-                v.to_le_bytes()
-            };
-            self.bytes.extend_from_slice(&b);
-            self
+            self.put(v.to_le_bytes(), v.to_be_bytes())
         }
     }
 

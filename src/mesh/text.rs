@@ -102,12 +102,7 @@ impl<'a> Text<'a> {
 
     fn word(&mut self) -> Option<&'a [u8]> {
         let start = self.pos;
-        while let Some(&c) = self.src.get(self.pos) {
-            if c.is_ascii_whitespace() || c == b'#' {
-                break;
-            }
-            self.pos += 1;
-        }
+        self.pos = word_end(self.src, start);
         Some(&self.src[start..self.pos])
     }
 
@@ -187,6 +182,14 @@ impl<'a> Text<'a> {
             .and_then(|s| s.parse::<i64>().ok())
             .ok_or_else(|| self.error(format!("expected {what}, found {}", show(t))))
     }
+}
+
+/// Where the word at `start` ends: at whitespace, a `#` or the end.
+pub(crate) fn word_end(src: &[u8], start: usize) -> usize {
+    src[start..]
+        .iter()
+        .position(|&c| c.is_ascii_whitespace() || c == b'#')
+        .map_or(src.len(), |n| start + n)
 }
 
 /// A token for a message: quoted, escaped, and cut short when long (a
