@@ -238,23 +238,25 @@ impl Mesh {
     /// Every index in range (the readers check as they go; this is the
     /// last word).
     fn check(&self, path: &Path) -> Result<(), MeshError> {
+        use rayon::prelude::*;
         let np = self.positions.len() as u32;
         let nn = self.normals.len() as u32;
         let nm = self.materials.len() as u32;
-        for (i, f) in self.faces.iter().enumerate() {
-            let bad = f.positions.iter().any(|&p| p >= np)
+        let bad = |f: &Face| {
+            f.positions.iter().any(|&p| p >= np)
                 || f.normals
                     .is_some_and(|n| n.iter().any(|&k| k >= nn && k != SMOOTH))
-                || f.material.is_some_and(|m| m >= nm);
-            if bad {
-                return Err(MeshError {
-                    path: path.to_path_buf(),
-                    at: None,
-                    message: format!(
-                        "face {i} refers to a vertex, normal or material it does not define"
-                    ),
-                });
-            }
+                || f.material.is_some_and(|m| m >= nm)
+        };
+        // The first bad face, as a loop would name it.
+        if let Some(i) = self.faces.par_iter().position_first(bad) {
+            return Err(MeshError {
+                path: path.to_path_buf(),
+                at: None,
+                message: format!(
+                    "face {i} refers to a vertex, normal or material it does not define"
+                ),
+            });
         }
         if !self.colors.is_empty() && self.colors.len() != self.positions.len() {
             return Err(MeshError {
