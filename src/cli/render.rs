@@ -213,11 +213,9 @@ impl Watch for Bar {
 /// normals, and meshes made the scene's triangles); the first and last only
 /// where the scene names model files.
 fn load_phases(scene: &glint::scene::Scene, total: Duration) -> Vec<(&'static str, Duration)> {
-    let read: Duration = scene.meshes.iter().map(|m| m.read_time).sum();
-    let normals: Duration = scene.meshes.iter().map(|m| m.normals_time).sum();
-    let parse = total.saturating_sub(read + normals);
+    let phases = scene.load_phases(total);
     if scene.meshes.is_empty() {
-        return vec![("parse", parse)];
+        return vec![phases[1]];
     }
-    vec![("read", read), ("parse", parse), ("normals", normals)]
+    phases.into()
 }

@@ -334,22 +334,18 @@ fn material(m: &gltf::Material) -> Material {
 }
 
 /// A perspective camera placed by its node's transform (glTF cameras
-/// look down their local -z with +y up); None for an orthographic one, or
-/// one whose placement or angle cannot see.
+/// look down their local -z with +y up); None for an orthographic one.
+/// Whether it can see is the scene's to judge (`CameraSpec::basis`).
 fn file_camera(camera: &gltf::Camera, world: DMat4) -> Option<super::FileCamera> {
     let gltf::camera::Projection::Perspective(p) = camera.projection() else {
         return None;
     };
-    let fov = f64::from(p.yfov()).to_degrees();
     let eye = world.transform_point3(DVec3::ZERO);
-    let forward = world.transform_vector3(DVec3::NEG_Z).try_normalize()?;
-    let up = world.transform_vector3(DVec3::Y).try_normalize()?;
-    let usable = (fov > 0.0 && fov < 180.0) && eye.is_finite() && forward.cross(up).length() > 1e-6;
-    usable.then_some(super::FileCamera {
+    Some(super::FileCamera {
         eye,
-        look: eye + forward,
-        up,
-        fov,
+        look: eye + world.transform_vector3(DVec3::NEG_Z),
+        up: world.transform_vector3(DVec3::Y),
+        fov: f64::from(p.yfov()).to_degrees(),
     })
 }
 

@@ -75,7 +75,8 @@ pub struct Mesh {
     /// What was tolerated in reading it.
     pub report: Report,
     /// The file's own view, where it has one (glTF's first perspective
-    /// camera in the scene's nodes).
+    /// camera in the scene's nodes), as the file places it: it may not
+    /// see (a view along its up, a field of view out of range).
     pub camera: Option<FileCamera>,
 }
 
@@ -84,7 +85,7 @@ pub struct Mesh {
 pub struct FileCamera {
     /// Where the camera is.
     pub eye: DVec3,
-    /// A point it looks at (one unit along its view).
+    /// A point it looks at (along its view).
     pub look: DVec3,
     /// Its up direction.
     pub up: DVec3,

@@ -187,6 +187,8 @@ fn resolve(
 struct Cursor<'a> {
     src: &'a [u8],
     pos: usize,
+    /// Line ends passed: the current line's index in the piece.
+    ends: usize,
 }
 
 impl<'a> Cursor<'a> {
@@ -234,11 +236,13 @@ impl<'a> Cursor<'a> {
         }
     }
 
-    /// Past the end of this line; false at the end of the piece.
+    /// Past the end of this line (counted in `ends`); false at the end of
+    /// the piece.
     fn next_line(&mut self) -> bool {
         match memchr::memchr(b'\n', &self.src[self.pos..]) {
             Some(i) => {
                 self.pos += i + 1;
+                self.ends += 1;
                 self.pos < self.src.len()
             }
             None => {
@@ -257,8 +261,11 @@ fn finite(v: f64) -> Option<f64> {
 
 fn piece(src: &[u8]) -> Option<Piece> {
     let mut p = Piece::default();
-    let mut c = Cursor { src, pos: 0 };
-    let mut line = 0u32;
+    let mut c = Cursor {
+        src,
+        pos: 0,
+        ends: 0,
+    };
     loop {
         if let Some(key) = c.token() {
             match key {
@@ -286,7 +293,7 @@ fn piece(src: &[u8]) -> Option<Piece> {
                     p.polygons.push((
                         u32::try_from(start).ok()?,
                         u32::try_from(len).ok()?,
-                        line,
+                        u32::try_from(c.ends).ok()?,
                         u32::try_from(p.positions.len()).ok()?,
                         u32::try_from(p.normals.len()).ok()?,
                     ));
@@ -298,11 +305,8 @@ fn piece(src: &[u8]) -> Option<Piece> {
         if !c.next_line() {
             break;
         }
-        line = line.checked_add(1)?;
     }
-    // Lines in the piece: each line end is one (the last piece may end
-    // without one).
-    p.lines = memchr::memchr_iter(b'\n', src).count();
+    p.lines = c.ends;
     Some(p)
 }
 

@@ -153,6 +153,13 @@ impl Report {
             .join(", ")
     }
 
+    /// Why a model brought no triangles: the faces dropped and why, else
+    /// that it holds none to begin with.
+    pub(crate) fn why_no_triangles(&self) -> String {
+        self.dropped_faces()
+            .unwrap_or_else(|| "points, lines or nothing".into())
+    }
+
     /// The faces read but dropped ("2 degenerate faces (corners on one
     /// line or point), 1 face with a non-finite vertex"), for a mesh that
     /// brought no triangles: the reason it is empty.

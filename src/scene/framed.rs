@@ -40,12 +40,10 @@ pub fn model_scene(path: &Path, material: Material) -> Result<Scene, MeshError> 
         return Err(MeshError {
             path: path.to_path_buf(),
             at: None,
-            message: match mesh.report.dropped_faces() {
-                Some(dropped) => format!("nothing to render: it holds no triangles ({dropped})"),
-                None => {
-                    "nothing to render: it holds no triangles (points, lines or nothing)".into()
-                }
-            },
+            message: format!(
+                "nothing to render: it holds no triangles ({})",
+                mesh.report.why_no_triangles()
+            ),
         });
     }
     // The file's materials where it has them for every face; vertex
@@ -66,16 +64,16 @@ pub fn model_scene(path: &Path, material: Material) -> Result<Scene, MeshError> 
     );
     let bounds = scene.bounds();
     let normals_time = normals_start.elapsed();
-    let (mut camera, light) = framing(bounds);
-    if let Some(own) = mesh.camera {
-        camera = CameraSpec {
-            eye: own.eye,
-            look: own.look,
-            up: own.up,
-            fov: own.fov,
-        };
-    }
-    scene.camera = Some(camera);
+    let (framed, light) = framing(bounds);
+    // The file's own view where it can see, as a camera block must.
+    let own = mesh.camera.map(|c| CameraSpec {
+        eye: c.eye,
+        look: c.look,
+        up: c.up,
+        fov: c.fov,
+    });
+    let sees = |c: &CameraSpec| c.fov > 0.0 && c.fov < 180.0 && c.basis().is_some();
+    scene.camera = Some(own.filter(sees).unwrap_or(framed));
     scene.lights.push(light);
     scene.meshes.push(MeshInfo {
         file: path.display().to_string(),

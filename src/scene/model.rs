@@ -486,6 +486,19 @@ impl Scene {
         out
     }
 
+    /// `total`, the time this scene took to read, split as `-v` shows it:
+    /// (`read`: model files' bytes, `parse`: what the others leave,
+    /// `normals`: smooth normals and meshes made the scene's triangles).
+    pub fn load_phases(
+        &self,
+        total: std::time::Duration,
+    ) -> [(&'static str, std::time::Duration); 3] {
+        let read = self.meshes.iter().map(|m| m.read_time).sum();
+        let normals = self.meshes.iter().map(|m| m.normals_time).sum();
+        let parse = total.saturating_sub(read + normals);
+        [("read", read), ("parse", parse), ("normals", normals)]
+    }
+
     /// Spheres and triangles together.
     pub fn primitive_count(&self) -> usize {
         self.spheres.len() + self.triangles.len()

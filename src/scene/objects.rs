@@ -254,14 +254,10 @@ impl<'a> Parser<'a> {
         if mesh.faces.is_empty() {
             let diagnostic = self.diagnostic(
                 &name_tok,
-                match mesh.report.dropped_faces() {
-                    Some(dropped) => {
-                        format!("{name} holds no triangles ({dropped}): it adds nothing")
-                    }
-                    None => format!(
-                        "{name} holds no triangles (points, lines or nothing): it adds nothing"
-                    ),
-                },
+                format!(
+                    "{name} holds no triangles ({}): it adds nothing",
+                    mesh.report.why_no_triangles()
+                ),
                 Some("check the file: glint renders surfaces (faces, triangles)"),
             );
             self.warn(diagnostic);

@@ -99,9 +99,7 @@ pub fn run_load(options: &LoadOptions, log: &mut dyn FnMut(&str)) -> Result<Load
             let start = Instant::now();
             let scene = crate::scene::read_scene(path)?;
             let loaded = start.elapsed();
-            let read: Duration = scene.meshes.iter().map(|m| m.read_time).sum();
-            let normals: Duration = scene.meshes.iter().map(|m| m.normals_time).sum();
-            let parse = loaded.saturating_sub(read + normals);
+            let [(_, read), (_, parse), (_, normals)] = scene.load_phases(loaded);
             let at = Instant::now();
             let view = scene.in_view_space().into_owned();
             let view_t = at.elapsed();
