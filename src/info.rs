@@ -41,7 +41,7 @@ impl fmt::Display for SceneInfo<'_> {
             let b = m.bounds;
             writeln!(
                 f,
-                "mesh        {}: {} triangles, bounds ({}, {}, {}) .. ({}, {}, {}), loaded in {:.1} ms",
+                "mesh        {}: {} triangles, bounds ({}, {}, {}) .. ({}, {}, {}), {}",
                 m.file,
                 m.triangles,
                 b.min.x,
@@ -50,7 +50,13 @@ impl fmt::Display for SceneInfo<'_> {
                 b.max.x,
                 b.max.y,
                 b.max.z,
-                m.load_time.as_secs_f64() * 1e3
+                // A load takes time; a scene read back from the cache
+                // loaded nothing, and says so.
+                if m.load_time.is_zero() {
+                    "from the scene cache".to_string()
+                } else {
+                    format!("loaded in {:.1} ms", m.load_time.as_secs_f64() * 1e3)
+                }
             )?;
             if !m.report.is_empty() {
                 writeln!(f, "  tolerated {}", m.report.summary())?;

@@ -65,6 +65,7 @@ pub mod parts;
 pub mod probe;
 pub mod render;
 pub mod scene;
+pub mod scene_cache;
 pub mod suites;
 pub mod timing;
 pub mod units;

@@ -87,13 +87,17 @@ pub struct DeviceArgs {
 }
 
 /// The render options these flags (and `GLINT_VALIDATION`) decide; the
-/// rest are the defaults, with the pipeline cache in its usual place.
+/// rest are the defaults, with the pipeline and scene caches where the
+/// environment puts them.
 pub fn render_options(
     image: &ImageArgs,
     device: &DeviceArgs,
     effects: &EffectArgs,
-) -> RenderOptions {
-    RenderOptions {
+) -> anyhow::Result<RenderOptions> {
+    let scene_cache = glint::scene_cache::SceneCache::from_env().map_err(|e| {
+        anyhow::anyhow!("{e}; set a size such as 8G, or unset it for the default of 4 GiB")
+    })?;
+    Ok(RenderOptions {
         width: image.width,
         height: image.height,
         background: image.background,
@@ -103,8 +107,9 @@ pub fn render_options(
         validation: device.validation || std::env::var_os("GLINT_VALIDATION").is_some(),
         settings: effects.settings(),
         pipeline_cache: glint::gpu::cache::default_dir(),
+        scene_cache,
         ..RenderOptions::default()
-    }
+    })
 }
 
 /// Overrides of a scene's render settings (its `reflect:`, `spp:`, ...

@@ -159,7 +159,38 @@ const PARSE_BAR_BYTES: u64 = 64 << 20;
 /// Reads a scene file, or standard input for `-` (named `<stdin>` in
 /// messages). A big file shows how much of it is parsed: a 2.7 GB scene
 /// takes ten seconds.
-pub fn read_scene(path: &std::path::Path) -> Result<glint::scene::Scene, glint::Error> {
+pub fn read_scene(path: &std::path::Path) -> anyhow::Result<glint::scene::Scene> {
+    read_scene_timed(path).map(|(scene, _)| scene)
+}
+
+/// `read_scene`, through the scene cache the environment names
+/// (`SceneCache::from_env`), with `-v`'s phases of it: the load's own, or
+/// the cache's and a hit or a miss.
+pub fn read_scene_timed(
+    path: &std::path::Path,
+) -> anyhow::Result<(glint::scene::Scene, glint::timing::Timings)> {
+    let cache = glint::scene_cache::SceneCache::from_env().map_err(|e| {
+        anyhow::anyhow!("{e}; set a size such as 8G, or unset it for the default of 4 GiB")
+    })?;
+    match cache {
+        Some(cache) if path != std::path::Path::new("-") => {
+            Ok(cache.read_scene_with(path, load_scene)?)
+        }
+        _ => {
+            let start = std::time::Instant::now();
+            let scene = load_scene(path)?;
+            let mut timings = glint::timing::Timings::default();
+            for (name, d) in scene.shown_load_phases(start.elapsed()) {
+                timings.add(name, d);
+            }
+            Ok((scene, timings))
+        }
+    }
+}
+
+/// Reads a scene without the cache: standard input for `-`, a model file
+/// framed, a scene file with a progress bar where it is big.
+fn load_scene(path: &std::path::Path) -> Result<glint::scene::Scene, glint::Error> {
     use indicatif::{ProgressBar, ProgressDrawTarget, ProgressStyle};
     if path == std::path::Path::new("-") {
         return glint::scene::parse_reader(

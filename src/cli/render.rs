@@ -18,7 +18,7 @@ mod report;
 
 pub use args::RenderArgs;
 
-use super::{print_warnings, read_scene};
+use super::print_warnings;
 
 /// Where a render's messages go: stdout, unless the image goes there.
 #[derive(Clone, Copy)]
@@ -93,11 +93,11 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
         crop.check(args.image.width, args.image.height)?;
     }
     let parse_start = Instant::now();
-    let mut scene = read_scene(&args.scene)?;
+    let (mut scene, arrival) = super::read_scene_timed(&args.scene)?;
     args.camera.apply(&mut scene)?;
     let parse_time = parse_start.elapsed();
     print_warnings(&scene);
-    let options = args.options();
+    let options = args.options()?;
     let stop = match (args.target_error, args.time_limit) {
         (None, None) => Stop::Once,
         (target_rmse, time_limit) => Stop::Passes(StopAt {
@@ -125,8 +125,9 @@ pub fn run(args: RenderArgs) -> anyhow::Result<ExitCode> {
     let result = renderer.run(&job, &sink, &watch);
     watch.bar.finish_and_clear();
     let mut done = result.with_context(|| format!("rendering {}", args.scene.display()))?;
-    let phases = load_phases(&scene, parse_time);
-    done.output.timings.phases.splice(0..0, phases);
+    let timings = &mut done.output.timings;
+    timings.phases.splice(0..0, arrival.phases);
+    timings.counts.splice(0..0, arrival.counts);
     let say = Say {
         to_stderr: to_stdout,
     };
@@ -206,16 +207,4 @@ impl Watch for Bar {
         self.bar.set_message(line);
         self.bar.tick();
     }
-}
-
-/// The scene's arrival as `-v`'s first phases: `read` (model files' bytes),
-/// `parse` (the scene file and the models' contents) and `normals` (smooth
-/// normals, and meshes made the scene's triangles); the first and last only
-/// where the scene names model files.
-fn load_phases(scene: &glint::scene::Scene, total: Duration) -> Vec<(&'static str, Duration)> {
-    let phases = scene.load_phases(total);
-    if scene.meshes.is_empty() {
-        return vec![phases[1]];
-    }
-    phases.into()
 }

@@ -56,7 +56,7 @@ pub fn run(args: ViewArgs) -> anyhow::Result<ExitCode> {
     }
     let render = RenderOptions {
         tile: args.tile,
-        ..super::flags::render_options(&args.image, &args.device, &args.effects)
+        ..super::flags::render_options(&args.image, &args.device, &args.effects)?
     };
     let stem = match args.scene.file_stem() {
         Some(s) if args.scene.as_os_str() != "-" => PathBuf::from(s),

@@ -178,12 +178,38 @@ pub const EXTENSIONS: &str = ".obj, .ply, .off, .stl, .gltf or .glb";
 /// Reads a model file, its format chosen by extension (STL's encoding and
 /// GLB by content), with bounded memory whatever the file is.
 pub fn load(path: &Path) -> Result<Mesh, MeshError> {
-    load_timed(path).map(|(mesh, _)| mesh)
+    load_timed(path).map(|loaded| loaded.mesh)
 }
 
-/// `load`, and how long of it reading the file's bytes took (the rest is
-/// parsing), for `-v`'s phases.
-pub(crate) fn load_timed(path: &Path) -> Result<(Mesh, std::time::Duration), MeshError> {
+/// A model `load_timed` read, with what `-v` and the scene cache want to
+/// know of its reading.
+pub(crate) struct Loaded {
+    pub(crate) mesh: Mesh,
+    /// How long reading the file's bytes took (the rest is parsing).
+    pub(crate) read_time: std::time::Duration,
+    /// Every file it came from: the model file, then those it refers to
+    /// that were tried (MTL libraries, glTF buffers), found or not.
+    pub(crate) files: Vec<std::path::PathBuf>,
+}
+
+/// `load`, and what `Loaded` tells of it.
+pub(crate) fn load_timed(path: &Path) -> Result<Loaded, MeshError> {
+    let (mesh, referenced) = source::referenced_during(|| load_here(path));
+    let (mesh, read_time) = mesh?;
+    let mut files = vec![path.to_path_buf()];
+    for f in referenced {
+        if !files.contains(&f) {
+            files.push(f);
+        }
+    }
+    Ok(Loaded {
+        mesh,
+        read_time,
+        files,
+    })
+}
+
+fn load_here(path: &Path) -> Result<(Mesh, std::time::Duration), MeshError> {
     let format = Format::of(path).ok_or_else(|| MeshError {
         path: path.to_path_buf(),
         at: None,

@@ -54,6 +54,28 @@ pub enum Tolerance {
 }
 
 impl Tolerance {
+    /// Every kind, in declaration order (the scene cache writes a kind
+    /// as its index here).
+    pub(crate) const ALL: [Tolerance; 17] = [
+        Tolerance::Encoding,
+        Tolerance::UndefinedMaterial,
+        Tolerance::MissingLibrary,
+        Tolerance::MaterialValue,
+        Tolerance::BadNormal,
+        Tolerance::PartialNormals,
+        Tolerance::UnusedNormals,
+        Tolerance::DegenerateFace,
+        Tolerance::BadPosition,
+        Tolerance::TangledPolygon,
+        Tolerance::NotSurface,
+        Tolerance::PartialColors,
+        Tolerance::TextureIgnored,
+        Tolerance::Structure,
+        Tolerance::Extension,
+        Tolerance::Number,
+        Tolerance::TrailingData,
+    ];
+
     /// A short name for `glint info`'s counts.
     pub fn label(self) -> &'static str {
         match self {

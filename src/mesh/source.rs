@@ -6,7 +6,7 @@
 //! each with a warning.
 
 use std::io::Read;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use super::report::{Report, Tolerance};
 use super::{Format, MeshError};
@@ -305,7 +305,25 @@ fn read_glb(mut r: impl Read, mut head: Vec<u8>, path: &Path) -> Result<Vec<u8>,
 }
 
 /// A file a model refers to (an MTL library, a glTF buffer), read the same
-/// bounded way.
+/// bounded way; tried, it is one of the files the model came from
+/// (`referenced_during`), whether or not it was there.
 pub fn read_referenced(path: &Path, kind: Kind) -> Result<Vec<u8>, InputError> {
+    REFERENCED.with(|r| r.borrow_mut().push(path.to_path_buf()));
     input::read_path(path, kind)
+}
+
+thread_local! {
+    /// The files `read_referenced` tried on this thread during the
+    /// innermost `referenced_during`.
+    static REFERENCED: std::cell::RefCell<Vec<PathBuf>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
+/// `f()`, and the files a model refers to that it tried to read: what
+/// the scene cache checks besides the model file. A model is parsed on
+/// the thread that loads it, so every such read is this thread's.
+pub(crate) fn referenced_during<T>(f: impl FnOnce() -> T) -> (T, Vec<PathBuf>) {
+    let outer = REFERENCED.with(|r| std::mem::take(&mut *r.borrow_mut()));
+    let out = f();
+    let tried = REFERENCED.with(|r| std::mem::replace(&mut *r.borrow_mut(), outer));
+    (out, tried)
 }

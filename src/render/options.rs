@@ -64,6 +64,9 @@ pub struct RenderOptions {
     /// Keep built GPU pipelines on disk here (`gpu::cache::default_dir`);
     /// `None`: compile them every run.
     pub pipeline_cache: Option<std::path::PathBuf>,
+    /// Keep built trees on disk here and read them back for the same
+    /// geometry (`SceneCache::from_env`); `None`: build every render.
+    pub scene_cache: Option<crate::scene_cache::SceneCache>,
     /// The GPU's own options (pass timeout, list forms, ...).
     pub gpu: GpuRenderOptions,
     /// What the image is for: float values, or the 8-bit pixels of a PNG,
@@ -111,6 +114,7 @@ impl Default for RenderOptions {
             chain_passes: None,
             packets: true,
             pipeline_cache: None,
+            scene_cache: None,
             gpu: GpuRenderOptions::default(),
             pixels: PixelFormat::Float,
         }

@@ -18,9 +18,9 @@ pub struct Diagnostic {
     /// What to do about it, when there is something useful to say.
     pub hint: Option<String>,
     /// The part of the line shown, and where the caret goes in it.
-    pub(super) source_line: String,
-    pub(super) caret_col: usize,
-    pub(super) width: usize,
+    pub(crate) source_line: String,
+    pub(crate) caret_col: usize,
+    pub(crate) width: usize,
 }
 
 impl fmt::Display for Diagnostic {

@@ -35,7 +35,11 @@ const VIEW_FROM: DVec3 = DVec3::new(0.35, 0.45, 1.0);
 /// stays where the framing puts it).
 pub fn model_scene(path: &Path, material: Material) -> Result<Scene, MeshError> {
     let start = Instant::now();
-    let (mut mesh, read_time) = mesh::load_timed(path)?;
+    let mesh::Loaded {
+        mut mesh,
+        read_time,
+        files,
+    } = mesh::load_timed(path)?;
     if mesh.faces.is_empty() {
         return Err(MeshError {
             path: path.to_path_buf(),
@@ -83,6 +87,7 @@ pub fn model_scene(path: &Path, material: Material) -> Result<Scene, MeshError> 
         read_time,
         normals_time,
         report: std::mem::take(&mut mesh.report),
+        files,
     });
     Ok(scene)
 }

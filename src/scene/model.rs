@@ -197,6 +197,10 @@ pub struct MeshInfo {
     pub normals_time: std::time::Duration,
     /// What its loader tolerated (printed as warnings, counted by `info`).
     pub report: crate::mesh::report::Report,
+    /// Every file it came from: the model file, then those it refers to
+    /// that were tried (MTL libraries, glTF buffers), found or not; what
+    /// the scene cache checks for changes.
+    pub files: Vec<std::path::PathBuf>,
 }
 
 /// A parsed scene, in f64, as the file wrote it.
@@ -497,6 +501,19 @@ impl Scene {
         let normals = self.meshes.iter().map(|m| m.normals_time).sum();
         let parse = total.saturating_sub(read + normals);
         [("read", read), ("parse", parse), ("normals", normals)]
+    }
+
+    /// `load_phases` as `-v` shows them: `read` and `normals` only where
+    /// the scene names model files.
+    pub fn shown_load_phases(
+        &self,
+        total: std::time::Duration,
+    ) -> Vec<(&'static str, std::time::Duration)> {
+        let phases = self.load_phases(total);
+        if self.meshes.is_empty() {
+            return vec![phases[1]];
+        }
+        phases.into()
     }
 
     /// Spheres and triangles together.

@@ -224,7 +224,11 @@ impl<'a> Parser<'a> {
         }
         let start = std::time::Instant::now();
         let file = self.base_dir().join(&name);
-        let (mesh, read_time) = crate::mesh::load_timed(&file).map_err(|e| {
+        let crate::mesh::Loaded {
+            mesh,
+            read_time,
+            files,
+        } = crate::mesh::load_timed(&file).map_err(|e| {
             self.error_at(
                 &name_tok,
                 format!("cannot load this mesh: {e}"),
@@ -305,6 +309,7 @@ impl<'a> Parser<'a> {
             read_time,
             normals_time,
             report: mesh.report,
+            files,
         });
         Ok(())
     }

@@ -101,6 +101,10 @@ impl Renderers {
                 o.settings
             },
             tile: o.tile.or(self.tile),
+            // Every view change is a new view, so a new tree: kept, each
+            // would be an entry nothing reads again (the scene itself was
+            // read through the cache before the window opened).
+            scene_cache: None,
             ..o.clone()
         };
         let mut r = match (&self.context, cpu) {

@@ -3,10 +3,19 @@
 use std::path::Path;
 use std::process::{Command, Output};
 
+/// Runs glint in `dir`, the scene cache off: a test's scene is loaded and
+/// built by the run itself, whatever ran before it (`glint_env` turns
+/// the cache on).
 pub fn glint(args: &[&str], dir: &Path) -> Output {
+    glint_env(args, dir, &[("GLINT_SCENE_CACHE", "off")])
+}
+
+/// As `glint`, with `env` set.
+pub fn glint_env(args: &[&str], dir: &Path, env: &[(&str, &str)]) -> Output {
     Command::new(env!("CARGO_BIN_EXE_glint"))
         .args(args)
         .current_dir(dir)
+        .envs(env.iter().copied())
         .output()
         .expect("run glint")
 }

@@ -8,7 +8,7 @@
 set -euo pipefail
 cd "$(dirname "$0")/../.."
 mode=${1:-smoke}; shift || true
-targets=(scene obj mtl ply off stl gltf image)
+targets=(scene obj mtl ply off stl gltf image cache)
 case $mode in
     smoke) limit=(-max_total_time="${1:-20}") ;;
     runs) limit=(-runs="${1:?runs N}"); shift; (($#)) && targets=("$@") ;;

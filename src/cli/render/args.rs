@@ -171,9 +171,9 @@ impl FrameFormat {
 
 impl RenderArgs {
     /// The render options the flags decide.
-    pub fn options(&self) -> RenderOptions {
-        let base = crate::cli::flags::render_options(&self.image, &self.device, &self.effects);
-        RenderOptions {
+    pub fn options(&self) -> anyhow::Result<RenderOptions> {
+        let base = crate::cli::flags::render_options(&self.image, &self.device, &self.effects)?;
+        Ok(RenderOptions {
             methods: match self.methods {
                 MethodsArg::Robust => Methods::Robust,
                 MethodsArg::Naive => Methods::Naive,
@@ -187,6 +187,6 @@ impl RenderArgs {
                 ..Default::default()
             },
             ..base
-        }
+        })
     }
 }

@@ -67,7 +67,7 @@ pub(super) fn run(
     let mut scene = read_scene(&args.scene)?;
     args.camera.apply(&mut scene)?;
     print_warnings(&scene);
-    let options = args.options();
+    let options = args.options()?;
     let renderer = Renderer::new(&options)?;
     if let Some(note) = renderer.note() {
         eprintln!("note: {note}");

@@ -21,7 +21,7 @@ pub(super) fn run(args: &RenderArgs, pixel: [u32; 2]) -> anyhow::Result<ExitCode
     let mut scene = read_scene(&args.scene)?;
     args.camera.apply(&mut scene)?;
     print_warnings(&scene);
-    let options = args.options();
+    let options = args.options()?;
     let start = Instant::now();
     let probed = pixel_path(&scene, &options, pixel)?;
     if let Some(note) = &probed.note {
