@@ -69,6 +69,7 @@ pub mod scene_cache;
 pub mod suites;
 pub mod timing;
 pub mod units;
+#[cfg(feature = "window")]
 pub mod view;
 
 pub use error::Error;

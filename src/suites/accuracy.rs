@@ -11,6 +11,7 @@ use crate::images::compare::flip_mean;
 use crate::images::framebuffer::Framebuffer;
 use crate::methods::Methods;
 use crate::scene::{Effects, Sampler, Scene, Settings};
+#[cfg(feature = "plots")]
 use crate::suites::plot::LogLog;
 
 /// Where a point renders.
@@ -488,6 +489,7 @@ pub fn markdown(rows: &[Measured], header: &str, target: f64) -> String {
     s
 }
 
+#[cfg(feature = "plots")]
 /// A log-log plot of RMSE against time, one line per knob and backend
 /// (`LogLog::to_svg`, `LogLog::to_image`).
 pub fn plot(rows: &[Measured], title: &str) -> LogLog {
@@ -508,11 +510,13 @@ pub fn plot(rows: &[Measured], title: &str) -> LogLog {
     crate::suites::plot::log_log(title, "render time (ms)", "RMSE", &series)
 }
 
+#[cfg(feature = "plots")]
 /// `plot` as SVG (text is drawn by whatever shows it).
 pub fn svg(rows: &[Measured], title: &str) -> String {
     plot(rows, title).to_svg()
 }
 
+#[cfg(feature = "plots")]
 /// `plot` drawn at twice its size (text in the embedded DejaVu Sans).
 pub fn png_image(rows: &[Measured], title: &str) -> image::RgbImage {
     plot(rows, title).to_image(2.0)

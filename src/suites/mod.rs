@@ -7,4 +7,5 @@ pub mod accuracy;
 pub mod bench;
 pub mod check;
 pub mod hard;
+#[cfg(feature = "plots")]
 pub mod plot;

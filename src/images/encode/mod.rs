@@ -64,7 +64,8 @@ impl ImageFile {
 }
 
 /// How hard PNG's deflate works; the decoded pixels are the same.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, clap::ValueEnum)]
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq)]
+#[cfg_attr(feature = "cli", derive(clap::ValueEnum))]
 pub enum PngCompression {
     /// fdeflate's fast mode: what glint has always written, a few ms for
     /// 1080p, files about 3x the size of `best`'s on flat renders.

@@ -299,6 +299,7 @@ fn ms(s: Option<Stat>) -> f64 {
 impl BenchReport {
     /// Render time against primitive count, log-log, one line per backend
     /// (`glint bench --plot`): how each one's cost grows with the scene.
+    #[cfg(feature = "plots")]
     pub fn plot(&self) -> crate::suites::plot::LogLog {
         type Column = fn(&SceneResult) -> Option<Stat>;
         let columns: [(&str, Column); 3] = [
