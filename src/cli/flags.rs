@@ -94,9 +94,7 @@ pub fn render_options(
     device: &DeviceArgs,
     effects: &EffectArgs,
 ) -> anyhow::Result<RenderOptions> {
-    let scene_cache = glint::scene_cache::SceneCache::from_env().map_err(|e| {
-        anyhow::anyhow!("{e}; set a size such as 8G, or unset it for the default of 4 GiB")
-    })?;
+    let scene_cache = glint::scene_cache::SceneCache::from_env().map_err(anyhow::Error::msg)?;
     Ok(RenderOptions {
         width: image.width,
         height: image.height,

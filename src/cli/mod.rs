@@ -169,9 +169,7 @@ pub fn read_scene(path: &std::path::Path) -> anyhow::Result<glint::scene::Scene>
 pub fn read_scene_timed(
     path: &std::path::Path,
 ) -> anyhow::Result<(glint::scene::Scene, glint::timing::Timings)> {
-    let cache = glint::scene_cache::SceneCache::from_env().map_err(|e| {
-        anyhow::anyhow!("{e}; set a size such as 8G, or unset it for the default of 4 GiB")
-    })?;
+    let cache = glint::scene_cache::SceneCache::from_env().map_err(anyhow::Error::msg)?;
     match cache {
         Some(cache) if path != std::path::Path::new("-") => {
             Ok(cache.read_scene_with(path, load_scene)?)

@@ -31,11 +31,17 @@ pub fn default_dir() -> Option<PathBuf> {
         Some(v) => return Some(PathBuf::from(v)),
         None => {}
     }
+    Some(glint_cache_home()?.join("pipelines"))
+}
+
+/// Where glint keeps what it caches: `$XDG_CACHE_HOME/glint`, else
+/// `$HOME/.cache/glint`; `None` without either.
+pub(crate) fn glint_cache_home() -> Option<PathBuf> {
     let base = std::env::var_os("XDG_CACHE_HOME")
         .filter(|v| !v.is_empty())
         .map(PathBuf::from)
         .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))?;
-    Some(base.join("glint").join("pipelines"))
+    Some(base.join("glint"))
 }
 
 /// The device key from the device's properties.

@@ -72,21 +72,17 @@ impl SceneCache {
     /// (e.g. `8G`; default 4 GiB). `Ok(None)` when off or there is no
     /// home; an error for a size that is not one.
     pub fn from_env() -> Result<Option<SceneCache>, String> {
+        let fix = "set a size such as 8G, or unset it for the default of 4 GiB";
         let cap = match std::env::var("GLINT_SCENE_CACHE_SIZE") {
-            Ok(s) => {
-                crate::input::parse_size(&s).map_err(|e| format!("GLINT_SCENE_CACHE_SIZE: {e}"))?
-            }
+            Ok(s) => crate::input::parse_size(&s)
+                .map_err(|e| format!("GLINT_SCENE_CACHE_SIZE: {e}; {fix}"))?,
             Err(std::env::VarError::NotPresent) => DEFAULT_CAP,
-            Err(e) => return Err(format!("GLINT_SCENE_CACHE_SIZE: {e}")),
+            Err(e) => return Err(format!("GLINT_SCENE_CACHE_SIZE: {e}; {fix}")),
         };
         let dir = match std::env::var_os("GLINT_SCENE_CACHE") {
             Some(v) if v == "off" || v.is_empty() => return Ok(None),
             Some(v) => Some(PathBuf::from(v)),
-            None => std::env::var_os("XDG_CACHE_HOME")
-                .filter(|v| !v.is_empty())
-                .map(PathBuf::from)
-                .or_else(|| std::env::var_os("HOME").map(|h| PathBuf::from(h).join(".cache")))
-                .map(|base| base.join("glint").join("scenes")),
+            None => crate::gpu::cache::glint_cache_home().map(|g| g.join("scenes")),
         };
         Ok(dir.map(|d| SceneCache::new(d, cap)))
     }
